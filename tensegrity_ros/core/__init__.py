@@ -1,0 +1,12 @@
+"""ROS-free core: the model, the exact solver, stability and the tracker (numpy/scipy only)."""
+from .module import (ModuleParams, InvalidParameterError, PARAMETER_NAMES, STANDARD_GRAVITY,
+                     energy, gradient, hessian, actuator_force, node_positions)
+from .equilibria import (Equilibrium, EquilibriumSet, EquilibriumBatch, equilibria,
+                         equilibria_batch, classify)
+
+__all__ = [
+    'ModuleParams', 'InvalidParameterError', 'PARAMETER_NAMES', 'STANDARD_GRAVITY',
+    'energy', 'gradient', 'hessian', 'actuator_force', 'node_positions',
+    'Equilibrium', 'EquilibriumSet', 'EquilibriumBatch', 'equilibria', 'equilibria_batch',
+    'classify',
+]

@@ -1,0 +1,453 @@
+"""Follow a stable equilibrium along a parameter path, with jump detection (DESIGN.md section 3).
+
+The tracker knows nothing about tensegrity: it works on a :class:`PathProblem`,
+a family of equilibrium equations ``F(y, s) = 0`` along a path ``s in [0, 1]``
+with an energy and a stability matrix.  One module (2 angles) and the neck
+stack (angles and Lagrange multipliers) both implement it.
+
+Per step: a tangent predictor and a Newton corrector.  The step is bounded so
+that the smallest stability eigenvalue is predicted to at most halve and the
+state moves at most ``max_state_step``.  A step is accepted only if Newton
+contracts, lands near the prediction, the stability matrix is still positive
+definite (by eigenvalues) and the energy change matches the envelope theorem
+``dE/ds = dU/ds``.  When stability is about to be lost the event is localised
+on an extended system (fold: ``{F = 0, lambda_min = 0}``; branch point:
+``{F + beta psi = 0, lambda_min = 0, psi . F_s = 0}``), classified by whether
+the critical mode ``psi`` is orthogonal to ``F_s``, and the mechanism lands
+where an overdamped gradient flow with the parameters frozen just past the
+event takes it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.optimize import root
+
+FOLD = 'fold'
+BRANCH_POINT = 'branch_point'
+
+
+class PathProblem(Protocol):
+    """Equilibrium equations along a parameter path, as the tracker needs them.
+
+    ``y`` is the state (angles, and multipliers for constrained systems); ``s``
+    the path parameter.  ``stability`` returns the ascending eigenvalues of the
+    stability matrix (Hessian, or reduced Hessian) and the matching modes
+    expressed as state-space directions (columns).  ``descent`` is the velocity
+    of the overdamped mechanism (minus the gradient, projected if constrained);
+    ``project`` returns a nearby admissible state (identity if unconstrained).
+    """
+
+    size: int
+
+    def residual(self, y, s): ...
+    def jacobian(self, y, s): ...
+    def residual_s(self, y, s): ...
+    def energy(self, y, s): ...
+    def energy_s(self, y, s): ...
+    def stability(self, y, s): ...
+    def descent(self, y, s): ...
+    def project(self, y, s): ...
+
+
+@dataclass(frozen=True)
+class TrackerSettings:
+    """Tolerances and step limits of :func:`track` (named, so they can be tuned and cited)."""
+
+    #: Largest predicted change of any state component in one step (rad).
+    max_state_step: float = 0.05
+    #: The smallest eigenvalue may be predicted to shrink to this fraction per step.
+    eigenvalue_shrink: float = 0.5
+    #: Residual accepted as an equilibrium, relative to the stability scale.
+    residual_tol: float = 1e-10
+    #: Positive definite means lambda_min > this * |lambda_max|.
+    definiteness_tol: float = 1e-9
+    #: Newton iterations per corrector.
+    newton_iterations: int = 12
+    #: Localisation accuracy of an event in s.
+    locate_tol: float = 1e-9
+    #: Below this |psi . F_s| / |F_s| the critical point is a branch point.
+    branch_tol: float = 1e-6
+    #: The mechanism lands with the parameters frozen this far past the event (in s,
+    #: at least; made larger where the command is short, see ``_landing_offset``).
+    landing_offset: float = 1e-7
+    #: Step-off distance along the critical mode before sliding down (state units).
+    step_off: float = 1e-3
+    #: Give up after this many steps (a guard, never reached in practice).
+    max_steps: int = 100000
+    #: Smallest step in s before the tracker localises or gives up.
+    min_step: float = 1e-13
+
+
+@dataclass(frozen=True)
+class Event:
+    """A jump: the stable branch ended (``fold``) or lost stability (``branch_point``) at ``s``."""
+
+    kind: str
+    s: float
+    state: np.ndarray
+    landing_s: float
+    landing: np.ndarray
+    ambiguous: bool = False
+
+
+@dataclass(frozen=True)
+class Track:
+    """Result of :func:`track`: the last verified stable state, where it is, and the events.
+
+    ``status`` is ``'ok'`` when ``s == 1``, else ``'failed'`` with a ``message``;
+    ``state`` has always passed the residual and positive-definiteness checks.
+    """
+
+    state: np.ndarray
+    s: float
+    eigenvalues: np.ndarray
+    events: tuple = ()
+    status: str = 'ok'
+    message: str = ''
+    steps: int = 0
+
+
+class TrackingError(RuntimeError):
+    """The start state is not a stable equilibrium and cannot be made one."""
+
+
+def _solve(matrix, rhs):
+    if matrix.shape == (2, 2):
+        a, b, c, d = matrix[0, 0], matrix[0, 1], matrix[1, 0], matrix[1, 1]
+        det = a * d - b * c
+        if det == 0.0 or not math.isfinite(det):
+            raise np.linalg.LinAlgError('singular 2x2 matrix')
+        return np.array([(d * rhs[0] - b * rhs[1]) / det, (a * rhs[1] - c * rhs[0]) / det])
+    return np.linalg.solve(matrix, rhs)
+
+
+def _inf_norm(v):
+    return max(map(abs, v.tolist()), default=0.0)
+
+
+class _Tracker:
+    """One tracking run; holds the problem, the scales and the settings."""
+
+    def __init__(self, problem, settings):
+        self.problem = problem
+        self.settings = settings
+        self.scale = 1.0          # stability scale, set from the start state
+        self.steps = 0
+
+    # -- verification -------------------------------------------------------
+    def residual_ok(self, y, s):
+        return _inf_norm(self.problem.residual(y, s)) <= self.settings.residual_tol * self.scale
+
+    def definite(self, eigenvalues):
+        return eigenvalues[0] > self.settings.definiteness_tol * max(abs(eigenvalues[-1]), self.scale * 1e-3)
+
+    def newton(self, y, s):
+        """Newton corrector; ``None`` unless it contracts and converges."""
+        tol = self.settings.residual_tol * self.scale
+        previous = math.inf
+        for _ in range(self.settings.newton_iterations):
+            f = self.problem.residual(y, s)
+            if _inf_norm(f) <= 0.01 * tol:
+                return y
+            try:
+                delta = _solve(self.problem.jacobian(y, s), f)
+            except np.linalg.LinAlgError:
+                return None
+            size = _inf_norm(delta)
+            if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
+                return y if _inf_norm(f) <= tol else None
+            y = y - delta
+            previous = size
+            if size < 1e-15 * (1.0 + _inf_norm(y)):
+                break
+        return y if _inf_norm(self.problem.residual(y, s)) <= tol else None
+
+    # -- one continuation step ----------------------------------------------
+    def tangent(self, y, s):
+        return -_solve(self.problem.jacobian(y, s), self.problem.residual_s(y, s))
+
+    def try_step(self, y, s, tangent, ds, energy0, energy_s0):
+        """Corrector at s + ds; returns (state, eigenvalues, reason) with reason '' if accepted."""
+        s1 = s + ds
+        predicted = y + ds * tangent
+        y1 = self.newton(predicted, s1)
+        if y1 is None:
+            return None, None, 'newton'
+        if _inf_norm(y1 - predicted) > 0.5 * ds * _inf_norm(tangent) + 1e-9:
+            return None, None, 'far'
+        energy1 = self.problem.energy(y1, s1)
+        energy_s1 = self.problem.energy_s(y1, s1)
+        expected = 0.5 * (energy_s0 + energy_s1) * ds
+        slack = 1e-9 * (abs(energy0) + abs(energy1) + self.scale) + 0.5 * abs(energy_s1 - energy_s0) * ds
+        if abs((energy1 - energy0) - expected) > slack:
+            return None, None, 'energy'
+        eigenvalues = self.eigenvalues(y1, s1)
+        if not self.definite(eigenvalues):
+            return y1, eigenvalues, 'indefinite'
+        return y1, eigenvalues, ''
+
+    def run(self, y, s_end=1.0):
+        problem, cfg = self.problem, self.settings
+        s = 0.0
+        eigenvalues = self.eigenvalues(y, s)
+        self.scale = max(abs(eigenvalues[-1]), 1e-300)
+        y = self.newton(np.asarray(y, dtype=float), s)
+        if y is None:
+            raise TrackingError('the start state is not an equilibrium')
+        eigenvalues = self.eigenvalues(y, s)
+        if not self.definite(eigenvalues):
+            raise TrackingError('the start state is not a stable equilibrium')
+        events = []
+        ds = 1.0
+        rate = None
+        while s < s_end:
+            self.steps += 1
+            if self.steps > cfg.max_steps:
+                return self.result(y, s, eigenvalues, events, 'failed', 'too many steps')
+            try:
+                tangent = self.tangent(y, s)
+            except np.linalg.LinAlgError:
+                tangent = np.zeros_like(y)
+            ds = min(ds, s_end - s, cfg.max_state_step / max(_inf_norm(tangent), 1e-300))
+            if rate is None:
+                rate = self.eigenvalue_rate(y, s, tangent, eigenvalues[0])
+            if rate < 0.0:
+                ds = min(ds, (1.0 - cfg.eigenvalue_shrink) * eigenvalues[0] / -rate)
+            energy0, energy_s0 = problem.energy(y, s), problem.energy_s(y, s)
+            y1, eig1, reason = self.try_step(y, s, tangent, ds, energy0, energy_s0)
+            if not reason:
+                rate = (eig1[0] - eigenvalues[0]) / ds
+                y, s, eigenvalues = y1, s + ds, eig1
+                ds *= 2.0
+                continue
+            near_event = reason == 'indefinite' or ds <= 1e-4 or eigenvalues[0] <= 1e-3 * self.scale
+            if near_event:
+                event = self.locate(y, s, tangent, min(s + ds, s_end), s_end, y1 if reason == 'indefinite' else None)
+                if event is not None:
+                    kind, s_star, y_star = event
+                    try:
+                        jump = self.land(kind, s_star, y_star, s_end)
+                    except TrackingError as error:
+                        return self.result(y, s, eigenvalues, events, 'failed', str(error))
+                    events.append(jump)
+                    y, s = jump.landing, jump.landing_s
+                    eigenvalues = self.eigenvalues(y, s)
+                    ds, rate = 1.0, None
+                    continue
+            if ds <= cfg.min_step:
+                return self.result(y, s, eigenvalues, events, 'failed',
+                                   f'step size underflow at s={s!r} ({reason})')
+            ds *= 0.25 if reason == 'indefinite' else 0.5
+        return self.result(y, s, eigenvalues, events)
+
+    def result(self, y, s, eigenvalues, events, status='ok', message=''):
+        return Track(state=y, s=s, eigenvalues=np.asarray(eigenvalues), events=tuple(events),
+                     status=status, message=message, steps=self.steps)
+
+    def eigenvalue_rate(self, y, s, tangent, lam):
+        """d lambda_min / ds along the branch, by a small forward difference."""
+        h = 1e-6
+        return (self.eigenvalues(y + h * tangent, s + h)[0] - lam) / h
+
+    def eigenvalues(self, y, s):
+        """Ascending stability eigenvalues (without modes where the problem can)."""
+        cheap = getattr(self.problem, 'eigenvalues', None)
+        return cheap(y, s) if cheap is not None else self.problem.stability(y, s)[0]
+
+    # -- events ---------------------------------------------------------------
+    def critical(self, y, s, reference=None):
+        """(lambda_min / scale, psi) with psi's sign aligned to ``reference``."""
+        eigenvalues, modes = self.problem.stability(y, s)
+        psi = modes[:, 0] / np.linalg.norm(modes[:, 0])
+        if reference is not None and psi @ reference < 0.0:
+            psi = -psi
+        return eigenvalues[0] / self.scale, psi
+
+    def orthogonality(self, y, s, psi):
+        fs = self.problem.residual_s(y, s)
+        norm = np.linalg.norm(fs)
+        return abs(psi @ fs) / norm if norm > 0 else 0.0
+
+    def locate(self, y, s, tangent, s_bad, s_end, y_bad):
+        """Find the critical point ahead of (y, s); ``None`` if none before ``s_end``."""
+        _, psi = self.critical(y, s)
+        guesses = [(y, s)]
+        if y_bad is not None:
+            guesses.append((y_bad, s_bad))
+        order = ((BRANCH_POINT, FOLD) if self.orthogonality(y, s, psi) < 1e-2
+                 else (FOLD, BRANCH_POINT))
+        # The definiteness test has a tolerance, so the exact event may lie a little
+        # beyond the first step that failed it.
+        window = s_bad + 1e-6 + 0.1 * (s_bad - s)
+        for kind in order:
+            for y0, s0 in guesses:
+                found = self.solve_extended(kind, y0, s0, psi)
+                if found is None:
+                    continue
+                s_star, y_star = found
+                if not s - 1e-9 <= s_star <= window:
+                    continue
+                if s_star > s_end:
+                    return None
+                _, psi_star = self.critical(y_star, s_star, psi)
+                ratio = self.orthogonality(y_star, s_star, psi_star)
+                return (FOLD if ratio > self.settings.branch_tol else BRANCH_POINT,
+                        max(s_star, s), y_star)
+        return self.bisect(y, s, tangent, s_bad)
+
+    def solve_extended(self, kind, y0, s0, psi0):
+        """Newton-type solve of the fold or branch-point extended system."""
+        problem, scale = self.problem, self.scale
+        n = problem.size
+
+        def fold(z):
+            y, s = z[:n], z[n]
+            lam, _ = self.critical(y, s, psi0)
+            return np.concatenate([problem.residual(y, s) / scale, [lam]])
+
+        def branch(z):
+            y, s, beta = z[:n], z[n], z[n + 1]
+            lam, psi = self.critical(y, s, psi0)
+            fs = problem.residual_s(y, s)
+            fs_norm = np.linalg.norm(fs) or 1.0
+            return np.concatenate([(problem.residual(y, s) + beta * scale * psi) / scale,
+                                   [lam, psi @ fs / fs_norm]])
+
+        if kind == FOLD:
+            z0, fun = np.concatenate([y0, [s0]]), fold
+        else:
+            z0, fun = np.concatenate([y0, [s0, 0.0]]), branch
+        try:
+            with np.errstate(all='ignore'):
+                solution = root(fun, z0, method='hybr', options={'xtol': 1e-14})
+        except (np.linalg.LinAlgError, ValueError):
+            return None
+        z = solution.x
+        if not np.all(np.isfinite(z)):
+            return None
+        y, s = z[:n], float(z[n])
+        if _inf_norm(fun(z)) > 1e-9 or not self.residual_ok(y, s):
+            return None
+        if kind == BRANCH_POINT and abs(z[n + 1]) > 1e-8:
+            return None
+        return s, y
+
+    def bisect(self, y, s, tangent, s_bad):
+        """Fallback localisation: the largest s reachable on the stable branch, to locate_tol."""
+        good_y, good_s, bad_s = y, s, s_bad
+        while bad_s - good_s > self.settings.locate_tol:
+            mid = 0.5 * (good_s + bad_s)
+            try:
+                tangent = self.tangent(good_y, good_s)
+            except np.linalg.LinAlgError:
+                break
+            candidate = self.newton(good_y + (mid - good_s) * tangent, mid)
+            ok = candidate is not None and _inf_norm(candidate - good_y) < 10 * self.settings.max_state_step
+            if ok:
+                eig, _ = self.problem.stability(candidate, mid)
+                ok = self.definite(eig)
+            if ok:
+                good_y, good_s = candidate, mid
+            else:
+                bad_s = mid
+        _, psi = self.critical(good_y, good_s)
+        ratio = self.orthogonality(good_y, good_s, psi)
+        return (FOLD if ratio > self.settings.branch_tol else BRANCH_POINT), good_s, good_y
+
+    def land(self, kind, s_star, y_star, s_end):
+        """Freeze the parameters just past the event, step off, slide down, polish."""
+        cfg, problem = self.settings, self.problem
+        s_land = min(s_star + self.landing_offset(y_star, s_star), s_end)
+        _, psi = self.critical(y_star, s_star)
+        sides = []
+        for sign in (1.0, -1.0):
+            start = problem.project(y_star + sign * cfg.step_off * psi, s_land)
+            sides.append((problem.energy(start, s_land), sign, start))
+        sides.sort(key=lambda t: t[0])
+        if kind == FOLD:
+            sides = sides[:1]
+        landings = []
+        for _, _, start in sides:
+            landing = self.slide(start, s_land)
+            if landing is not None:
+                landings.append(landing)
+        if not landings:
+            raise TrackingError(f'could not land after the {kind} at s={s_star!r}')
+        landings.sort(key=lambda y: problem.energy(y, s_land))
+        ambiguous = (len(landings) == 2
+                     and _inf_norm(self.canonical(landings[0]) - self.canonical(landings[1])) > 1e-6)
+        return Event(kind=kind, s=s_star, state=y_star, landing_s=s_land,
+                     landing=landings[0], ambiguous=ambiguous)
+
+    def canonical(self, y):
+        return getattr(self.problem, 'canonical', lambda v: v)(y)
+
+    def landing_offset(self, y_star, s_star):
+        """Past the event by at least ``landing_offset`` in s and by a residual that the
+        overdamped flow feels (a short command has a small F_s)."""
+        fs = _inf_norm(self.problem.residual_s(y_star, s_star))
+        needed = 1e-7 * self.scale / fs if fs > 0 else 0.0
+        return max(self.settings.landing_offset, min(needed, 1e-3))
+
+    def slide(self, y, s):
+        """Overdamped gradient flow at fixed s until it settles, then Newton polish."""
+        problem = self.problem
+        rhs = lambda _t, v: problem.descent(v, s)
+        horizon = 10.0 / self.scale
+        for _ in range(40):
+            with np.errstate(all='ignore'):
+                flow = solve_ivp(rhs, (0.0, horizon), y, method='LSODA', rtol=1e-9, atol=1e-12)
+            if not flow.success:
+                return None
+            y = problem.project(flow.y[:, -1], s)
+            if _inf_norm(problem.descent(y, s)) <= 1e-6 * self.scale:
+                eig, _ = problem.stability(y, s)
+                if self.definite(eig):
+                    polished = self.newton(y, s)
+                    if polished is not None and _inf_norm(polished - y) < 1e-3:
+                        eig, _ = problem.stability(polished, s)
+                        if self.definite(eig):
+                            return polished
+            horizon *= 2.0
+        return None
+
+
+def track(problem: PathProblem, y0, settings: TrackerSettings = TrackerSettings()) -> Track:
+    """Follow the stable equilibrium at ``y0`` (s = 0) to s = 1, jumping where it must.
+
+    Raises :class:`TrackingError` if ``y0`` is not (close to) a stable
+    equilibrium at s = 0; every other outcome is reported in the result.
+    """
+    return _Tracker(problem, settings).run(np.array(y0, dtype=float))
+
+
+def settle(problem: PathProblem, y0, s=0.0, settings: TrackerSettings = TrackerSettings()):
+    """Where the overdamped mechanism released at ``y0`` comes to rest (at fixed s).
+
+    Returns the verified stable state, or raises :class:`TrackingError`.  A start
+    on a saddle's stable set is pushed off along the unstable mode (both ways;
+    the lower-energy landing wins) so that the answer is always a minimum.
+    """
+    tracker = _Tracker(problem, settings)
+    y0 = np.array(y0, dtype=float)
+    eigenvalues, modes = problem.stability(y0, s)
+    tracker.scale = max(abs(eigenvalues[-1]), 1e-300)
+    landing = tracker.slide(y0, s)
+    if landing is not None:
+        return landing
+    y = tracker.newton(y0, s) if tracker.residual_ok(y0, s) else None
+    candidates = []
+    for sign in (1.0, -1.0):
+        start = y0 if y is None else y
+        eig, modes = problem.stability(start, s)
+        candidate = tracker.slide(start + sign * settings.step_off * modes[:, 0], s)
+        if candidate is not None:
+            candidates.append(candidate)
+    if not candidates:
+        raise TrackingError('no stable equilibrium reached from the given state')
+    return min(candidates, key=lambda v: problem.energy(v, s))

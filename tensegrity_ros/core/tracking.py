@@ -1,0 +1,239 @@
+"""Tracking the stable equilibrium of one module along a parameter path.
+
+``track_module`` moves all parameters of a module together along the straight
+path p(s) = start + s (end - start), s in [0, 1], following the stable
+equilibrium it starts on with the generic tracker of :mod:`.continuation`, and
+reports every jump (fold or branch point) with where it lands.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import continuation as _continuation
+from . import module as _m
+from .continuation import TrackerSettings
+from .equilibria import Equilibrium, _build, _eigenvalues_2x2
+from .module import ModuleParams, PARAMETER_NAMES
+
+
+@dataclass(frozen=True)
+class ModuleJump:
+    """One jump: the branch ended (fold) or lost stability (branch point) at ``params``.
+
+    ``params.rho`` is the critical actuator length; ``from_theta`` the critical
+    configuration, ``to_theta`` the stable equilibrium the mechanism lands on.
+    ``ambiguous`` is set when the two sides of a branch point land differently.
+    """
+
+    kind: str
+    s: float
+    params: ModuleParams
+    from_theta: np.ndarray
+    to_theta: np.ndarray
+    ambiguous: bool = False
+
+
+@dataclass(frozen=True)
+class ModuleTrack:
+    """Result of :func:`track_module`.
+
+    ``status`` is ``'ok'`` (``end`` is the commanded end point) or ``'failed'``
+    (``end`` is where tracking stopped; ``final`` is still a verified stable
+    equilibrium there).  ``final`` is never an unverified state.
+    """
+
+    final: Equilibrium
+    end: ModuleParams
+    jumps: tuple
+    status: str = 'ok'
+    message: str = ''
+    steps: int = 0
+
+
+class ModulePath:
+    """One module along p(s) = start + s (end - start), as a :class:`PathProblem`.
+
+    The state is the unwrapped angle pair.  Everything is scalar arithmetic on
+    the parameter vector: no :class:`ModuleParams` is built per evaluation.
+    """
+
+    size = 2
+
+    def __init__(self, start: ModuleParams, end: ModuleParams):
+        if start.g != end.g:
+            raise ValueError('start and end must use the same gravity')
+        self.start, self.end = start, end
+        self.p0 = start.vector()
+        self.dp = end.vector() - self.p0
+        self.dp_list = self.dp.tolist()
+        self.g = start.g
+        self._cache_s = None
+        self._cache = None
+
+    def values(self, s):
+        """(rho, L1, L2, ka, kb, kc, f3x, f3y_total, f4x, f4y_total) at s."""
+        if s != self._cache_s:
+            rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y, m1, m2 = (self.p0 + s * self.dp).tolist()
+            self._cache = (rho, L1, L2, ka, kb, kc, f3x, f3y - 0.5 * m1 * self.g,
+                           f4x, f4y - 0.5 * m2 * self.g)
+            self._cache_s = s
+        return self._cache
+
+    def params(self, s):
+        return ModuleParams.from_vector(self.p0 + s * self.dp, g=self.g)
+
+    def residual(self, y, s):
+        rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = self.values(s)
+        t1, t2 = y[0], y[1]
+        s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
+        s12 = s1 * c2 + c1 * s2
+        return np.array([L1 * ((ka + kc) * rho * s1 - kc * L2 * s12 + f3x * s1 - f3y * c1),
+                         L2 * ((kb + kc) * rho * s2 - kc * L1 * s12 - f4x * s2 - f4y * c2)])
+
+    def jacobian(self, y, s):
+        rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = self.values(s)
+        t1, t2 = y[0], y[1]
+        s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
+        c12 = c1 * c2 - s1 * s2
+        h12 = -kc * L1 * L2 * c12
+        return np.array([[L1 * ((ka + kc) * rho * c1 - kc * L2 * c12 + f3x * c1 + f3y * s1), h12],
+                         [h12, L2 * ((kb + kc) * rho * c2 - kc * L1 * c12 - f4x * c2 + f4y * s2)]])
+
+    def residual_s(self, y, s):
+        """dF/ds = dF/dp . (end - start) at fixed angles."""
+        rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = self.values(s)
+        d_rho, d_L1, d_L2, d_ka, d_kb, d_kc, d_f3x, d_f3y, d_f4x, d_f4y, d_m1, d_m2 = self.dp_list
+        t1, t2 = y[0], y[1]
+        s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
+        s12 = s1 * c2 + c1 * s2
+        half = 0.5 * self.g
+        inner1 = (ka + kc) * rho * s1 - kc * L2 * s12 + f3x * s1 - f3y * c1
+        inner2 = (kb + kc) * rho * s2 - kc * L1 * s12 - f4x * s2 - f4y * c2
+        r1 = (d_L1 * inner1 + L1 * ((ka + kc) * s1 * d_rho - kc * s12 * d_L2 + rho * s1 * d_ka
+                                    + (rho * s1 - L2 * s12) * d_kc + s1 * d_f3x
+                                    - c1 * (d_f3y - half * d_m1)))
+        r2 = (d_L2 * inner2 + L2 * ((kb + kc) * s2 * d_rho - kc * s12 * d_L1 + rho * s2 * d_kb
+                                    + (rho * s2 - L1 * s12) * d_kc - s2 * d_f4x
+                                    - c2 * (d_f4y - half * d_m2)))
+        return np.array([r1, r2])
+
+    def energy(self, y, s):
+        rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = self.values(s)
+        c1, s1, c2, s2 = math.cos(y[0]), math.sin(y[0]), math.cos(y[1]), math.sin(y[1])
+        x3, y3 = L1 * c1, L1 * s1
+        x4, y4 = rho - L2 * c2, L2 * s2
+        springs = 0.5 * (ka * ((x3 - rho) ** 2 + y3 ** 2) + kb * (x4 ** 2 + y4 ** 2)
+                         + kc * ((x4 - x3) ** 2 + (y4 - y3) ** 2))
+        return springs - (f3x * x3 + f3y * y3 + f4x * x4 + f4y * y4)
+
+    def energy_s(self, y, s):
+        """dU/ds at fixed angles (the envelope theorem's side of the energy check)."""
+        rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = self.values(s)
+        d_rho, d_L1, d_L2, d_ka, d_kb, d_kc, d_f3x, d_f3y, d_f4x, d_f4y, d_m1, d_m2 = self.dp_list
+        c1, s1, c2, s2 = math.cos(y[0]), math.sin(y[0]), math.cos(y[1]), math.sin(y[1])
+        x3, y3 = L1 * c1, L1 * s1
+        x4, y4 = rho - L2 * c2, L2 * s2
+        dx, dy = x4 - x3, y4 - y3
+        half = 0.5 * self.g
+        force = ka * (rho - x3) + kb * (rho - L2 * c2) + kc * (rho - x3 - L2 * c2) - f4x
+        return (force * d_rho
+                + (ka * (L1 - rho * c1) - kc * (dx * c1 + dy * s1) - f3x * c1 - f3y * s1) * d_L1
+                + (kb * (L2 - rho * c2) + kc * (-dx * c2 + dy * s2) + f4x * c2 - f4y * s2) * d_L2
+                + 0.5 * ((x3 - rho) ** 2 + y3 ** 2) * d_ka + 0.5 * (x4 ** 2 + y4 ** 2) * d_kb
+                + 0.5 * (dx ** 2 + dy ** 2) * d_kc
+                - x3 * d_f3x - y3 * d_f3y - x4 * d_f4x - y4 * d_f4y
+                + half * (y3 * d_m1 + y4 * d_m2))
+
+    def eigenvalues(self, y, s):
+        """Ascending Hessian eigenvalues (the cheap half of :meth:`stability`)."""
+        h = self.jacobian(y, s)
+        return np.array(_eigenvalues_2x2(h[0, 0], h[0, 1], h[1, 1]))
+
+    def stability(self, y, s):
+        h = self.jacobian(y, s)
+        a, b, c = h[0, 0], h[0, 1], h[1, 1]
+        low, high = _eigenvalues_2x2(a, b, c)
+        return np.array([low, high]), np.column_stack([_eigenvector(a, b, c, low),
+                                                       _eigenvector(a, b, c, high)])
+
+    def descent(self, y, s):
+        return -self.residual(y, s)
+
+    def project(self, y, s):
+        return y
+
+    @staticmethod
+    def canonical(y):
+        return (np.asarray(y) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _eigenvector(a, b, c, lam):
+    """Unit eigenvector of [[a, b], [b, c]] for eigenvalue lam (the better-conditioned row)."""
+    u = np.array([b, lam - a])
+    v = np.array([lam - c, b])
+    w = u if abs(u[0]) + abs(u[1]) >= abs(v[0]) + abs(v[1]) else v
+    norm = math.hypot(w[0], w[1])
+    if norm == 0.0:
+        return np.array([1.0, 0.0]) if abs(a - lam) <= abs(c - lam) else np.array([0.0, 1.0])
+    return w / norm
+
+
+def _wrap(theta):
+    return (np.asarray(theta, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def equilibrium_at(params: ModuleParams, theta) -> Equilibrium:
+    """The :class:`Equilibrium` record (eigenvalues, energy, force, residual) at ``theta``."""
+    t1, t2 = (float(v) for v in _wrap(theta))
+    grad = _m.gradient(params, (t1, t2))
+    scale = max(abs((params.ka + params.kc) * params.rho + params.f3x), abs(params.f3y_total),
+                abs((params.kb + params.kc) * params.rho - params.f4x), abs(params.f4y_total),
+                params.kc * params.L1, params.kc * params.L2)
+    residual = max(abs(grad[0]) / params.L1, abs(grad[1]) / params.L2) / scale
+    return _build(params, [(t1, t2, residual)])[0]
+
+
+def settle(params: ModuleParams, theta_guess) -> Equilibrium:
+    """The stable equilibrium whose basin of attraction holds ``theta_guess``.
+
+    The overdamped mechanism released at the guess slides to it.  Raises
+    :class:`~tensegrity_ros.core.continuation.TrackingError` if none is reached.
+    """
+    theta_guess = _checked_theta(theta_guess)
+    path = ModulePath(params, params)
+    return equilibrium_at(params, _continuation.settle(path, theta_guess))
+
+
+def _checked_theta(theta):
+    theta = np.asarray(theta, dtype=float)
+    if theta.shape != (2,):
+        raise ValueError(f'theta must have shape (2,), got {theta.shape}')
+    if not np.all(np.isfinite(theta)):
+        raise ValueError(f'theta must be finite, got {theta.tolist()}')
+    return theta
+
+
+def track_module(start: ModuleParams, end: ModuleParams, theta,
+                 settings: TrackerSettings = TrackerSettings()) -> ModuleTrack:
+    """Follow the stable equilibrium at ``theta`` from ``start`` to ``end``.
+
+    If ``theta`` is not a stable equilibrium at ``start`` the mechanism first
+    settles (see :func:`settle`).  Every jump on the way is in ``jumps``.
+    """
+    theta = _checked_theta(theta)
+    path = ModulePath(start, end)
+    try:
+        result = _continuation.track(path, theta, settings)
+    except _continuation.TrackingError:
+        theta = _continuation.settle(path, theta)
+        result = _continuation.track(path, theta, settings)
+    jumps = tuple(ModuleJump(kind=e.kind, s=e.s, params=path.params(e.s),
+                             from_theta=_wrap(e.state), to_theta=_wrap(e.landing),
+                             ambiguous=e.ambiguous)
+                  for e in result.events)
+    reached = end if result.s == 1.0 else path.params(result.s)
+    return ModuleTrack(final=equilibrium_at(reached, result.state), end=reached, jumps=jumps,
+                       status=result.status, message=result.message, steps=result.steps)

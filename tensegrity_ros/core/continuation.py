@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
-from scipy.integrate import solve_ivp
+from scipy.integrate import LSODA
 from scipy.optimize import root
 
 FOLD = 'fold'
@@ -40,6 +40,13 @@ class PathProblem(Protocol):
     expressed as state-space directions (columns).  ``descent`` is the velocity
     of the overdamped mechanism (minus the gradient, projected if constrained);
     ``project`` returns a nearby admissible state (identity if unconstrained).
+    ``admissible(s)`` (optional) says whether the parameters at s (possibly
+    slightly beyond [0, 1], for landing) are physically valid.
+
+    Optional: ``eigenvalues(y, s)`` (the stability eigenvalues alone, if cheaper),
+    ``state_weights`` (per-component weights of the step-size norm, e.g. 1/length
+    for positions and 0 for multipliers; default all ones) and ``canonical(y)``
+    (a representative for comparing states, e.g. angles wrapped to [-pi, pi)).
     """
 
     size: int
@@ -76,11 +83,13 @@ class TrackerSettings:
     #: at least; made larger where the command is short, see ``_landing_offset``).
     landing_offset: float = 1e-7
     #: Step-off distance along the critical mode before sliding down (state units).
-    step_off: float = 1e-3
+    step_off: float = 1e-2
     #: Give up after this many steps (a guard, never reached in practice).
     max_steps: int = 100000
     #: Smallest step in s before the tracker localises or gives up.
     min_step: float = 1e-13
+    #: Velocity evaluations one landing flow may spend before it is abandoned.
+    flow_evaluations: int = 200000
 
 
 @dataclass(frozen=True)
@@ -112,6 +121,10 @@ class Track:
     steps: int = 0
 
 
+class _FlowBudgetExceeded(Exception):
+    """A landing flow used up its evaluation budget."""
+
+
 class TrackingError(RuntimeError):
     """The start state is not a stable equilibrium and cannot be made one."""
 
@@ -138,6 +151,13 @@ class _Tracker:
         self.settings = settings
         self.scale = 1.0          # stability scale, set from the start state
         self.steps = 0
+        self.last_rate = None     # d lambda_min / ds over the last accepted step
+        weights = getattr(problem, 'state_weights', None)
+        self.weights = None if weights is None else np.asarray(weights, dtype=float)
+
+    def step_norm(self, v):
+        """Size of a state change for the step limits (weighted max norm)."""
+        return _inf_norm(v if self.weights is None else self.weights * v)
 
     # -- verification -------------------------------------------------------
     def residual_ok(self, y, s):
@@ -178,7 +198,7 @@ class _Tracker:
         y1 = self.newton(predicted, s1)
         if y1 is None:
             return None, None, 'newton'
-        if _inf_norm(y1 - predicted) > 0.5 * ds * _inf_norm(tangent) + 1e-9:
+        if self.step_norm(y1 - predicted) > 0.5 * ds * self.step_norm(tangent) + 1e-9:
             return None, None, 'far'
         energy1 = self.problem.energy(y1, s1)
         energy_s1 = self.problem.energy_s(y1, s1)
@@ -213,7 +233,7 @@ class _Tracker:
                 tangent = self.tangent(y, s)
             except np.linalg.LinAlgError:
                 tangent = np.zeros_like(y)
-            ds = min(ds, s_end - s, cfg.max_state_step / max(_inf_norm(tangent), 1e-300))
+            ds = min(ds, s_end - s, cfg.max_state_step / max(self.step_norm(tangent), 1e-300))
             if rate is None:
                 rate = self.eigenvalue_rate(y, s, tangent, eigenvalues[0])
             if rate < 0.0:
@@ -221,7 +241,7 @@ class _Tracker:
             energy0, energy_s0 = problem.energy(y, s), problem.energy_s(y, s)
             y1, eig1, reason = self.try_step(y, s, tangent, ds, energy0, energy_s0)
             if not reason:
-                rate = (eig1[0] - eigenvalues[0]) / ds
+                rate = self.last_rate = (eig1[0] - eigenvalues[0]) / ds
                 y, s, eigenvalues = y1, s + ds, eig1
                 ds *= 2.0
                 continue
@@ -347,7 +367,7 @@ class _Tracker:
             except np.linalg.LinAlgError:
                 break
             candidate = self.newton(good_y + (mid - good_s) * tangent, mid)
-            ok = candidate is not None and _inf_norm(candidate - good_y) < 10 * self.settings.max_state_step
+            ok = candidate is not None and self.step_norm(candidate - good_y) < 10 * self.settings.max_state_step
             if ok:
                 eig, _ = self.problem.stability(candidate, mid)
                 ok = self.definite(eig)
@@ -360,13 +380,19 @@ class _Tracker:
         return (FOLD if ratio > self.settings.branch_tol else BRANCH_POINT), good_s, good_y
 
     def land(self, kind, s_star, y_star, s_end):
-        """Freeze the parameters just past the event, step off, slide down, polish."""
-        cfg, problem = self.settings, self.problem
-        s_land = min(s_star + self.landing_offset(y_star, s_star), s_end)
+        """Freeze the parameters just past the event, step off, slide down, polish.
+
+        If "just past" lies beyond the end of the command, the landed state is
+        then followed back along its own branch to the end point.
+        """
+        problem = self.problem
+        s_land = s_star + self.landing_offset(kind, y_star, s_star)
+        if s_land > s_end and not _admissible(problem, s_land):
+            s_land = s_end
         _, psi = self.critical(y_star, s_star)
         sides = []
         for sign in (1.0, -1.0):
-            start = problem.project(y_star + sign * cfg.step_off * psi, s_land)
+            start = problem.project(y_star + sign * self.step_off_vector(psi), s_land)
             sides.append((problem.energy(start, s_land), sign, start))
         sides.sort(key=lambda t: t[0])
         if kind == FOLD:
@@ -381,40 +407,133 @@ class _Tracker:
         landings.sort(key=lambda y: problem.energy(y, s_land))
         ambiguous = (len(landings) == 2
                      and _inf_norm(self.canonical(landings[0]) - self.canonical(landings[1])) > 1e-6)
+        landing = landings[0]
+        if s_land > s_end:
+            back = _Tracker(_Segment(problem, s_land, s_end), self.settings).run(landing)
+            if back.status != 'ok' or back.events:
+                raise TrackingError(f'the landing after the {kind} at s={s_star!r} does not '
+                                    f'persist to the end of the command')
+            landing, s_land = back.state, s_end
         return Event(kind=kind, s=s_star, state=y_star, landing_s=s_land,
-                     landing=landings[0], ambiguous=ambiguous)
+                     landing=landing, ambiguous=ambiguous)
 
     def canonical(self, y):
         return getattr(self.problem, 'canonical', lambda v: v)(y)
 
-    def landing_offset(self, y_star, s_star):
-        """Past the event by at least ``landing_offset`` in s and by a residual that the
-        overdamped flow feels (a short command has a small F_s)."""
-        fs = _inf_norm(self.problem.residual_s(y_star, s_star))
-        needed = 1e-7 * self.scale / fs if fs > 0 else 0.0
-        return max(self.settings.landing_offset, min(needed, 1e-3))
+    def landing_offset(self, kind, y_star, s_star):
+        """How far past the event (in s) the parameters are frozen for landing.
+
+        Fold: far enough that the overdamped flow feels a residual (a short
+        command has a small F_s).  Branch point: far enough that a new minimum
+        next to the critical point (a supercritical pitchfork: the mechanism
+        buckles smoothly) has a resolvable stiffness, ~1e-4 of the scale.
+        """
+        cfg = self.settings
+        if kind == FOLD:
+            fs = _inf_norm(self.problem.residual_s(y_star, s_star))
+            needed = 1e-7 * self.scale / fs if fs > 0 else 0.0
+            return max(cfg.landing_offset, min(needed, 1e-3))
+        # d lambda_min / ds measured on the approach (the branch is regular up to s*).
+        rate = abs(self.last_rate) if self.last_rate else 0.0
+        needed = 1e-4 * self.scale / rate if rate > 0 else 1e-3
+        return max(cfg.landing_offset, min(needed, 1e-3))
 
     def slide(self, y, s):
-        """Overdamped gradient flow at fixed s until it settles, then Newton polish."""
+        """Overdamped gradient flow at fixed s until it comes to rest, then Newton polish.
+
+        Integrated by scipy's LSODA stepper (stiff-capable: the flow is slow near
+        the ghost of a fold and fast elsewhere), stopping at the first step where
+        the velocity is negligible.  At rest on a minimum the state is polished;
+        at rest on a saddle it is pushed off along the unstable mode.
+        """
         problem = self.problem
-        rhs = lambda _t, v: problem.descent(v, s)
-        horizon = 10.0 / self.scale
-        for _ in range(40):
-            with np.errstate(all='ignore'):
-                flow = solve_ivp(rhs, (0.0, horizon), y, method='LSODA', rtol=1e-9, atol=1e-12)
-            if not flow.success:
+        # Far below any velocity met on the way (near a fold's ghost the landing
+        # offset keeps it above ~1e-7 scale), so the flow stops only at rest.
+        tol = 1e-10 * self.scale
+        budget = [self.settings.flow_evaluations]
+
+        def velocity(_t, v):
+            budget[0] -= 1
+            if budget[0] < 0:
+                raise _FlowBudgetExceeded
+            return problem.descent(v, s)
+
+        for _ in range(4):
+            try:
+                y = self.flow_to_rest(velocity, y, tol)
+            except _FlowBudgetExceeded:
                 return None
-            y = problem.project(flow.y[:, -1], s)
-            if _inf_norm(problem.descent(y, s)) <= 1e-6 * self.scale:
-                eig, _ = problem.stability(y, s)
-                if self.definite(eig):
-                    polished = self.newton(y, s)
-                    if polished is not None and _inf_norm(polished - y) < 1e-3:
-                        eig, _ = problem.stability(polished, s)
-                        if self.definite(eig):
-                            return polished
-            horizon *= 2.0
+            if y is None:
+                return None
+            y = problem.project(y, s)
+            polished = self.newton(y, s)
+            if polished is None or self.step_norm(polished - y) >= 1e-2:
+                continue
+            if (self.definite(self.eigenvalues(polished, s))
+                    and problem.energy(polished, s) <= problem.energy(y, s) + 1e-12 * self.scale):
+                return polished
+            _, modes = problem.stability(polished, s)      # a saddle: push off
+            y = problem.project(polished + self.step_off_vector(modes[:, 0]), s)
         return None
+
+    def flow_to_rest(self, velocity, y, tol):
+        """Integrate dy/dt = velocity until |velocity| <= tol; ``None`` if the solver fails."""
+        with np.errstate(all='ignore'):
+            solver = LSODA(velocity, 0.0, y, 1e7 / self.scale, rtol=1e-7, atol=1e-10)
+            while solver.status == 'running':
+                solver.step()
+                if _inf_norm(velocity(solver.t, solver.y)) <= tol:
+                    return solver.y
+        return solver.y if solver.status == 'finished' else None
+
+    def step_off_vector(self, mode):
+        """``mode`` scaled to the step-off distance in the weighted state norm."""
+        return self.settings.step_off * mode / max(self.step_norm(mode), 1e-300)
+
+
+def _admissible(problem, s):
+    check = getattr(problem, 'admissible', None)
+    return True if check is None else check(s)
+
+
+class _Segment:
+    """The part of a path between s_a and s_b, reparametrised to t in [0, 1] (either direction)."""
+
+    def __init__(self, problem, s_a, s_b):
+        self.problem, self.s_a, self.ds = problem, s_a, s_b - s_a
+        self.size = problem.size
+        for name in ('state_weights', 'canonical'):
+            if hasattr(problem, name):
+                setattr(self, name, getattr(problem, name))
+        if hasattr(problem, 'eigenvalues'):
+            self.eigenvalues = lambda y, t: problem.eigenvalues(y, self.at(t))
+
+    def at(self, t):
+        return self.s_a + t * self.ds
+
+    def residual(self, y, t):
+        return self.problem.residual(y, self.at(t))
+
+    def jacobian(self, y, t):
+        return self.problem.jacobian(y, self.at(t))
+
+    def residual_s(self, y, t):
+        return self.ds * self.problem.residual_s(y, self.at(t))
+
+    def energy(self, y, t):
+        return self.problem.energy(y, self.at(t))
+
+    def energy_s(self, y, t):
+        return self.ds * self.problem.energy_s(y, self.at(t))
+
+    def stability(self, y, t):
+        return self.problem.stability(y, self.at(t))
+
+    def descent(self, y, t):
+        return self.problem.descent(y, self.at(t))
+
+    def project(self, y, t):
+        return self.problem.project(y, self.at(t))
 
 
 def track(problem: PathProblem, y0, settings: TrackerSettings = TrackerSettings()) -> Track:
@@ -445,7 +564,7 @@ def settle(problem: PathProblem, y0, s=0.0, settings: TrackerSettings = TrackerS
     for sign in (1.0, -1.0):
         start = y0 if y is None else y
         eig, modes = problem.stability(start, s)
-        candidate = tracker.slide(start + sign * settings.step_off * modes[:, 0], s)
+        candidate = tracker.slide(problem.project(start + sign * tracker.step_off_vector(modes[:, 0]), s), s)
         if candidate is not None:
             candidates.append(candidate)
     if not candidates:

@@ -85,6 +85,13 @@ class ModulePath:
     def params(self, s):
         return ModuleParams.from_vector(self.p0 + s * self.dp, g=self.g)
 
+    def admissible(self, s):
+        try:
+            self.params(s)
+        except ValueError:
+            return False
+        return True
+
     def residual(self, y, s):
         rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = self.values(s)
         t1, t2 = y[0], y[1]

@@ -510,26 +510,37 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
 
 
 def stack_equilibria(stack: Stack, starts=64, seed=0):
-    """Equilibria of a stack by multi-start Newton on the KKT system (for tests and the CLI).
+    """Equilibria of a stack by multi-start search (for tests and the CLI), sorted by energy.
 
-    Not guaranteed complete (there is no polynomial elimination for N > 1); with
-    enough starts it finds every equilibrium of a small stack.  Sorted by energy.
+    Newton on the KKT system from ``starts`` random configurations finds
+    equilibria of every type; overdamped settles from ``starts // 4`` more
+    sample the basins of the minima, so stable equilibria are not left to the
+    luck of Newton.  Not guaranteed complete (there is no polynomial
+    elimination for N > 1), but with enough starts it finds every equilibrium
+    of a small stack.
     """
     path = StackPath(stack, stack)
     rng = np.random.default_rng(seed)
-    found = []
+    n_var = path.topology.n_var
     scale = float(np.max([max(m.ka, m.kb, m.kc) for m in stack.modules]))
+    found = []
+
+    def add(y):
+        if (np.all(np.isfinite(y)) and np.max(np.abs(path.residual(y, 0.0))) <= 1e-9 * scale
+                and all(np.max(np.abs(y[:n_var] - f[:n_var])) >= 1e-7 for f in found)):
+            found.append(y)
+
     for _ in range(starts):
         y0 = path.state_from_angles(rng.uniform(-math.pi, math.pi, (len(stack), 2)), 0.0)
         with np.errstate(all='ignore'):
             sol = root(lambda y: path.residual(y, 0.0), y0, jac=lambda y: path.jacobian(y, 0.0),
                        method='hybr', options={'xtol': 1e-13})
-        y = sol.x
-        if not np.all(np.isfinite(y)) or np.max(np.abs(path.residual(y, 0.0))) > 1e-9 * scale:
-            continue
-        positions = y[:path.topology.n_var]
-        if any(np.max(np.abs(positions - f[:path.topology.n_var])) < 1e-7 for f in found):
-            continue
-        found.append(y)
+        add(sol.x)
+    for _ in range(max(4, starts // 4)):
+        y0 = path.state_from_angles(rng.uniform(-math.pi, math.pi, (len(stack), 2)), 0.0)
+        try:
+            add(_continuation.settle(path, y0, 0.0))
+        except _continuation.TrackingError:
+            pass
     records = [_record(path, y, 0.0) for y in found]
     return sorted(records, key=lambda r: r.energy)

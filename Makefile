@@ -35,25 +35,28 @@ test: $(STAMP)
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do $(PY) $$b || exit 1; done
 
-# The paper's figures (maps: figs. 3, 4a, 4b, 5 slices, 7; diagrams: figs. 8a, 8b) from the CLI.
+# The paper's figures (maps: figs. 3, 4a, 4b, 5 slices, 7 and the tip C of fig. 6, each with its
+# exact boundary curves; diagrams: figs. 8a, 8b) from the CLI.
 FIGDIR ?= docs/figures
 TENSEGRITY := $(VENV)/bin/tensegrity
 figures: $(STAMP)
 	mkdir -p $(FIGDIR)
-	$(TENSEGRITY) map --x rho 0.005 4 400 --y L2 0.005 4 400 --png $(FIGDIR)/fig3_unloaded_rho_L2.png \
+	$(TENSEGRITY) map --x rho 0.005 4 400 --y L2 0.005 4 400 --boundaries --png $(FIGDIR)/fig3_unloaded_rho_L2.png \
 	  --title 'Fig. 3: unloaded (F3 = F4 = 0), L1 = 1, k = 100'
-	$(TENSEGRITY) map --x rho 0.004 2 400 --y F -10 0 320 --L2 1 --png $(FIGDIR)/fig4a_symmetric_pushing.png \
+	$(TENSEGRITY) map --x rho 0.004 2 400 --y F -10 0 320 --L2 1 --boundaries --png $(FIGDIR)/fig4a_symmetric_pushing.png \
 	  --title 'Fig. 4a: symmetric, pushing F = F3 = F4 <= 0, L1 = L2 = 1, k = 100'
-	$(TENSEGRITY) map --x rho 0.004 2 400 --y F 0 10 320 --L2 1 --png $(FIGDIR)/fig4b_symmetric_pulling.png \
+	$(TENSEGRITY) map --x rho 0.004 2 400 --y F 0 10 320 --L2 1 --boundaries --png $(FIGDIR)/fig4b_symmetric_pulling.png \
 	  --title 'Fig. 4b: symmetric, pulling F = F3 = F4 >= 0, L1 = L2 = 1, k = 100'
-	$(TENSEGRITY) map --x rho 0.004 2 400 --y F4 0 10 320 --F3 5 --L2 1.5 --png $(FIGDIR)/fig5a_slice_F3_5_L2_1.5.png \
+	$(TENSEGRITY) map --x rho 0.004 2 400 --y F4 0 10 320 --F3 5 --L2 1.5 --boundaries --png $(FIGDIR)/fig5a_slice_F3_5_L2_1.5.png \
 	  --title 'Fig. 5a slice: F3 = 5, L2 = 3/2, L1 = 1, k = 100'
-	$(TENSEGRITY) map --x rho 0.004 2 400 --y F4 0 10 320 --F3 5 --L2 1 --png $(FIGDIR)/fig5b_slice_F3_5_L2_1.png \
+	$(TENSEGRITY) map --x rho 0.004 2 400 --y F4 0 10 320 --F3 5 --L2 1 --boundaries --png $(FIGDIR)/fig5b_slice_F3_5_L2_1.png \
 	  --title 'Fig. 5b slice: F3 = 5, L2 = 1, L1 = 1, k = 100'
-	$(TENSEGRITY) map --x rho 0.004 2 400 --y F4 0 10 320 --F3 5 --L2 0.5 --png $(FIGDIR)/fig5c_slice_F3_5_L2_0.5.png \
+	$(TENSEGRITY) map --x rho 0.004 2 400 --y F4 0 10 320 --F3 5 --L2 0.5 --boundaries --png $(FIGDIR)/fig5c_slice_F3_5_L2_0.5.png \
 	  --title 'Fig. 5c slice: F3 = 5, L2 = 1/2, L1 = 1, k = 100'
-	$(TENSEGRITY) map --x rho 0.005 2 400 --y L2 0.005 2 400 --F -10 --png $(FIGDIR)/fig7_pushing_rho_L2.png \
+	$(TENSEGRITY) map --x rho 0.005 2 400 --y L2 0.005 2 400 --F -10 --boundaries --png $(FIGDIR)/fig7_pushing_rho_L2.png \
 	  --title 'Fig. 7: F3 = F4 = -10 (pushing), L1 = 1, k = 100'
+	$(TENSEGRITY) map --x rho 0.2 0.5 400 --y F 40 75 320 --L2 1 --boundaries --png $(FIGDIR)/fig6_tip_C_boundaries.png \
+	  --title 'Tip of the 2-stable region (fig. 6, point C): F3 = F4, L1 = L2 = 1, k = 100'
 	$(TENSEGRITY) diagram --from-rho 0.005 --to-rho 2 --count 400 --F 5 --L2 1 \
 	  --track 0.5 0.1 0.5 --theta1 -1 --theta2 -1 --png $(FIGDIR)/fig8a_diagram.png \
 	  --title 'Fig. 8a: L1 = L2 = 1, F3 = F4 = 5; path 0.5 -> 0.1 -> 0.5 from the lower branch (C1)'

@@ -148,6 +148,43 @@ BAD_ARGUMENTS = [
     ['diagram', '--from-rho', '0.1', '--to-rho', '2', '--png', 'x.png', '--theta1', '1',
      '--theta2', '1'],
     ['diagram', '--from-rho', '0.1', '--to-rho', '2', '--png', 'x.png', '--L2', 'inf'],
+    # stack
+    ['solve', '--modules', '2'],
+    ['solve', '--modules', '0', '--rho', '1'],
+    ['solve', '--modules', '2', '--rhos', '0.5'],
+    ['solve', '--rho', '0.5', '--rhos', '0.5', '0.6'],
+    ['solve', '--rhos', '0.5', '-0.6'],
+    ['solve', '--modules', '2', '--rho', '0.7', '--L2', '-1'],
+    ['solve', '--modules', '2', '--rho', '0.7', '--method', 'exact'],
+    ['solve', '--modules', '2', '--rho', '0.7', '--method', 'newton'],
+    ['solve', '--modules', '2', '--rho', '0.7', '--starts', '0'],
+    ['solve', '--rho', '0.7', '--starts', '5'],
+    ['solve', '--config', 'missing.yaml'],
+    ['solve', '--node', 'x', '--rho', '1'],
+    ['track', '--modules', '2', '--rho', '0.7', '--to-rho', '0.6', '--theta', '1', '2', '3'],
+    ['track', '--rho', '0.7', '--to-rho', '0.6', '--theta', '1', '2', '3'],
+    ['track', '--modules', '2', '--rho', '0.7', '--to-rho', '0.6', '--theta1', '1',
+     '--theta2', '1'],
+    ['track', '--modules', '2', '--rho', '0.7', '--to-rhos', '0.6'],
+    ['track', '--modules', '2', '--rho', '0.7', '--to-rho', '0.6', '--to-rhos', '0.6', '0.6'],
+    ['track', '--modules', '2', '--rho', '0.7', '--to-rho', '0.6', '--theta', '1', 'x', '1',
+     '1'],
+    # exact boundaries, range, limit
+    ['map', '--x', 'rho', '0.1', '1', '10', '--y', 'm1', '0', '1', '10', '--boundaries-csv',
+     'b.csv'],
+    ['map', '--x', 'rho', '0.1', '1', '10', '--y', 'F', '0', '1', '10', '--boundaries'],
+    ['map', '--x', 'rho', '0.1', '1', '10', '--y', 'F', '0', '1', '10', '--boundaries-csv',
+     '/nonexistent-dir/b.csv'],
+    ['map', '--x', 'rho', '0.1', '1', '10', '--y', 'F', '0', '1', '10', '--csv', '-',
+     '--boundaries-csv', '-'],
+    ['range'],
+    ['range', '--rho', '0.5', '--theta1', '1'],
+    ['range', '--rho', '0.5', '--rho-bounds', '0.6', '1'],
+    ['range', '--rho', '0.5', '--rho-bounds', '1', '0.6'],
+    ['range', '--rho', 'nan'],
+    ['limit', '--L2', '-1'],
+    ['limit', '--L2', '1', '--F3', '1'],
+    ['limit', '--k', '0'],
 ]
 
 
@@ -351,3 +388,354 @@ def test_diagram_png_and_csv(capsys, tmp_path):
     assert 'fold at rho=0.874533' in out
     assert 'track rho 0.5 -> 0.1: branch_point' in out
     assert 'track rho 0.1 -> 0.5: no jump' in out
+
+
+# ---------------------------------------------------------------------------
+# the neck stack: solve / track with several modules (DESIGN.md section 4)
+
+ROOT = Path(__file__).resolve().parents[1]
+NECK = ROOT / 'config' / 'neck.yaml'
+DEFAULT = ROOT / 'config' / 'default.yaml'
+
+
+def wrapped(a, b):
+    d = (np.asarray(a, float) - np.asarray(b, float) + np.pi) % (2 * np.pi) - np.pi
+    return float(np.max(np.abs(d)))
+
+
+def _check_stack_equilibrium(e, n, rhos):
+    """Schema of one stack equilibrium, and its geometry from the reported nodes."""
+    assert set(e) >= {'theta', 'stable', 'eigenvalues', 'energy', 'actuator_forces', 'head'}
+    assert np.shape(e['theta']) == (n, 2)
+    assert len(e['eigenvalues']) == n + 1            # 4N coordinates, 3N - 1 rigid lengths
+    assert e['eigenvalues'] == sorted(e['eigenvalues'])
+    assert e['stable'] is (e['eigenvalues'][0] > 0)
+    assert len(e['actuator_forces']) == n
+    assert set(e['head']) == {'x', 'y', 'angle'}
+    assert e['residual'] < 1e-8
+    nodes = np.array(e['nodes'])
+    assert nodes.shape == (2 + 2 * n, 2)
+    for i in range(n - 1):                            # module i+1 stands on module i's chord
+        chord = np.linalg.norm(nodes[2 + 2 * i] - nodes[3 + 2 * i])
+        assert chord == pytest.approx(rhos[i + 1], abs=1e-9)
+    a3, a4 = nodes[-2], nodes[-1]                     # the head is the top chord A4 -> A3
+    assert [e['head']['x'], e['head']['y']] == pytest.approx(list(0.5 * (a3 + a4)), abs=1e-12)
+    assert e['head']['angle'] == pytest.approx(math.atan2(*(a3 - a4)[::-1]), abs=1e-12)
+
+
+@pytest.mark.parametrize('method', ['exact', 'multi-start'])
+def test_stack_solve_with_one_module_equals_plain_solve(capsys, method):
+    args = ('--rho', 0.75, '--F', -10)
+    plain = run_json(capsys, 'solve', *args)
+    stack = run_json(capsys, 'solve', '--modules', 1, *args, '--method', method,
+                     *(('--starts', 32) if method == 'multi-start' else ()))
+    assert stack['method'] == method and stack['complete'] is (method == 'exact')
+    assert stack['modules'] == ['m0']
+    assert stack['params'] == [plain['params']]
+    assert len(stack['equilibria']) == len(plain['equilibria']) == 6
+    assert stack['num_stable'] == plain['num_stable'] == 2
+    energies = [e['energy'] for e in stack['equilibria']]
+    assert energies == sorted(energies)
+    for ref in plain['equilibria']:
+        match = min(stack['equilibria'],
+                    key=lambda e: wrapped(e['theta'][0], (ref['theta1'], ref['theta2'])))
+        assert wrapped(match['theta'][0], (ref['theta1'], ref['theta2'])) < 1e-9
+        _check_stack_equilibrium(match, 1, [0.75])
+        assert match['stable'] is ref['stable']
+        assert match['energy'] == pytest.approx(ref['energy'], rel=1e-9, abs=1e-9)
+        assert match['actuator_forces'][0] == pytest.approx(ref['actuator_force'], abs=1e-8)
+        # L1 = L2 = 1: node displacements are the angle changes, same eigenvalues
+        assert match['eigenvalues'] == pytest.approx(ref['eigenvalues'], rel=1e-7, abs=1e-7)
+        head = 0.5 * (np.array(ref['A3']) + np.array(ref['A4']))
+        assert [match['head']['x'], match['head']['y']] == pytest.approx(list(head), abs=1e-12)
+
+
+def test_stack_solve_one_module_table_says_exact(capsys):
+    code, out, err = run(capsys, 'solve', '--modules', 1, '--rho', 0.75, '--F', -10)
+    assert code == 0 and err == ''
+    assert 'exact (polynomial elimination, complete): 6 equilibria, 2 stable' in out
+
+
+@pytest.mark.parametrize('argv, rhos', [
+    (('--modules', 2, '--rho', 0.7, '--F', -2, '--starts', 16), [0.7, 0.7]),
+    (('--rhos', 0.7, 0.65, 0.6, '--F3', -1, '--F4', -0.5, '--F3x', 0.3, '--starts', 12),
+     [0.7, 0.65, 0.6]),
+], ids=['N2', 'N3'])
+def test_stack_solve_json_schema(capsys, argv, rhos):
+    doc = run_json(capsys, 'solve', *argv)
+    n = len(rhos)
+    assert doc['method'] == 'multi-start' and doc['complete'] is False
+    assert 'not guaranteed complete' in doc['note']
+    assert doc['modules'] == [f'm{i}' for i in range(n)]
+    params = doc['params']
+    assert [p['rho'] for p in params] == rhos
+    # the force options load the head only
+    assert all(p['f3y'] == 0.0 and p['f4y'] == 0.0 and p['f3x'] == 0.0 for p in params[:-1])
+    assert params[-1]['f3y'] < 0 and params[-1]['f4y'] < 0
+    eqs = doc['equilibria']
+    assert doc['num_equilibria'] == len(eqs) and doc['num_stable'] == sum(e['stable'] for e in eqs)
+    assert doc['num_stable'] >= 1
+    energies = [e['energy'] for e in eqs]
+    assert energies == sorted(energies)
+    for e in eqs:
+        _check_stack_equilibrium(e, n, rhos)
+    # the stable equilibria are where an independent settle from them stays
+    from tensegrity_ros.core.stack import Stack, settle_stack
+    stack = Stack(tuple(ModuleParams(**p) for p in params))
+    for e in [e for e in eqs if e['stable']][:2]:
+        again = settle_stack(stack, np.array(e['theta']) + 1e-3)
+        assert wrapped(again.theta, e['theta']) < 1e-7
+
+
+def test_stack_solve_text(capsys):
+    code, out, err = run(capsys, 'solve', '--modules', 2, '--rho', 0.7, '--F', -2, '--starts', 16)
+    assert code == 0 and err == ''
+    lines = out.splitlines()
+    assert lines[0].startswith('2 modules m0, m1 (bottom to top); rho = 0.7, 0.7 m')
+    assert 'loads: m1 F3=F4=-2' in lines[0]
+    assert 'multi-start search, not guaranteed complete' in lines[1]
+    assert lines[2].startswith('#1  ') and 'eigenvalues[N/m]' in lines[2]
+    assert lines[3].split() == ['module', 'theta1[deg]', 'theta2[deg]', 'actuator[N]']
+    assert lines[4].split()[0] == 'm0' and lines[5].split()[0] == 'm1'
+
+
+def test_config_file_solve_finds_the_upright_neck(capsys):
+    from tensegrity_ros.params_file import load_stack_config
+    config = load_stack_config(NECK)
+    doc = run_json(capsys, 'solve', '--config', NECK, '--starts', 16)
+    assert doc['modules'] == ['m0', 'm1', 'm2']
+    assert [p['rho'] for p in doc['params']] == [m.params.rho for m in config.modules]
+    assert doc['params'][-1]['f3y'] == -0.5 and doc['params'][0]['f3y'] == 0.0
+    assert doc['params'][1]['m1'] == 0.02 and doc['params'][1]['ka'] == 300.0
+    upright = [e for e in doc['equilibria']
+               if wrapped(e['theta'], config.initial_theta) < 0.03]
+    assert len(upright) == 1 and upright[0]['stable']
+    for e in doc['equilibria']:
+        _check_stack_equilibrium(e, 3, [0.09, 0.085, 0.08])
+    head = upright[0]['head']
+    assert head['angle'] == pytest.approx(0.0, abs=1e-9)       # symmetric: the head is level
+    assert head['x'] == pytest.approx(0.045, abs=1e-12)        # above the middle of the base
+    # --stable-only: the same stable equilibria, numbered as in the full list
+    code, out, err = run(capsys, 'solve', '--config', NECK, '--starts', 16, '--stable-only')
+    assert code == 0 and err == ''
+    numbers = [int(line.split()[0][1:]) for line in out.splitlines() if line.startswith('#')]
+    assert numbers == [i + 1 for i, e in enumerate(doc['equilibria']) if e['stable']]
+
+
+def test_config_file_track(capsys):
+    doc = run_json(capsys, 'track', '--config', NECK, '--to-rhos', 0.09, 0.085, 0.07)
+    assert doc['status'] == 'ok' and doc['events'] == []
+    assert doc['start']['guess_source'].startswith('initial_theta of')
+    assert doc['start']['stable'] and doc['final']['stable']
+    assert doc['final']['rho'] == [0.09, 0.085, 0.07]
+    assert np.shape(doc['final']['theta']) == (3, 2)
+    assert wrapped(doc['start']['theta'][0], doc['final']['theta'][0]) < 1e-9   # m0 is held
+    assert doc['final']['head']['y'] > doc['start']['head']['y']         # shorter top actuator
+    # a growing head load buckles the neck sideways: a branch point, then it lands stable
+    doc = run_json(capsys, 'track', '--config', NECK, '--to-F', -30)
+    assert doc['status'] == 'ok'
+    kinds = [e['kind'] for e in doc['events']]
+    assert kinds[0] == 'branch_point'
+    for e in doc['events']:
+        assert set(e) >= {'kind', 's', 'rho', 'theta', 'landing'}
+        assert e['rho'] == [0.09, 0.085, 0.08]
+        assert np.shape(e['theta']) == (3, 2) and np.shape(e['landing']['theta']) == (3, 2)
+    first = doc['events'][0]
+    assert first['F3'] == pytest.approx(-0.5 + first['s'] * (-30 + 0.5), abs=1e-9)
+    before = np.array(first['theta'])
+    assert np.max(np.abs(before[:, 0] - before[:, 1])) < 1e-6      # symmetric before
+    assert doc['final']['stable'] is True
+
+
+def test_stack_track_json_schema_and_n1_equals_plain_track(capsys):
+    doc = run_json(capsys, 'track', '--modules', 2, '--rho', 0.6, '--to-F', -40)
+    assert set(doc) >= {'events', 'final', 'start', 'status'}
+    assert doc['start']['guess_source'] == 'upright'
+    assert set(doc['final']) >= {'theta', 'stable'} and np.shape(doc['final']['theta']) == (2, 2)
+    assert doc['events'] and doc['events'][0]['kind'] == 'branch_point'
+    for e in doc['events']:
+        assert len(e['rho']) == 2 and np.shape(e['landing']['theta']) == (2, 2)
+    # one module: the events of the plain track (fig. 8a, C1 from the lower branch)
+    plain = _track(capsys, 0.5, 0.1, *LOWER)
+    stack = run_json(capsys, 'track', '--modules', 1, '--rho', 0.5, '--to-rho', 0.1, *FIG8A,
+                     '--theta', -1, -1)
+    assert [e['kind'] for e in stack['events']] == [e['kind'] for e in plain['events']]
+    assert stack['events'][0]['rho'] == [pytest.approx(C1_RHO, abs=1e-6)]
+    assert stack['events'][0]['s'] == pytest.approx(plain['events'][0]['s'], abs=1e-9)
+    assert wrapped(stack['final']['theta'][0],
+                   (plain['final']['theta1'], plain['final']['theta2'])) < 1e-8
+
+
+def test_stack_track_text(capsys):
+    code, out, err = run(capsys, 'track', '--modules', 2, '--rho', 0.6, '--to-F', -40)
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0].startswith('path: 2 modules m0, m1') and lines[1].startswith('  ->  ')
+    assert lines[2].startswith('start (upright): theta [deg] m0 (')
+    assert lines[3].startswith('event 1: branch_point at s=')
+    assert lines[-1].startswith('final: theta [deg] m0 (') and 'status ok' in lines[-1]
+
+
+def test_config_file_layouts(capsys, tmp_path):
+    # ROS 2 also accepts a named node entry and flat 'm.key' parameter names
+    text = """
+tensegrity:
+  ros__parameters:
+    modules: [base, head]
+    publish_rate: 20.0
+    base.L1: 1
+    base.L2: 1.2
+    base.k: 150
+    base.kc: 90.0
+    base.rho_initial: 0.7
+    base.initial_theta: [0.8, 0.8]
+    base.colour: red
+    head:
+      k: 100
+      m1: 0.1
+      force_a3: [0.5, -1.0]
+      force_a4: [0, -2]
+      rho_initial: 0.6
+"""
+    path = tmp_path / 'two.yaml'
+    path.write_text(text)
+    doc = run_json(capsys, 'track', '--config', path, '--to-rhos', 0.7, 0.55)
+    base, head = doc['start']['params']
+    assert (base['L2'], base['ka'], base['kb'], base['kc']) == (1.2, 150.0, 150.0, 90.0)
+    assert (head['f3x'], head['f3y'], head['f4x'], head['f4y']) == (0.5, -1.0, 0.0, -2.0)
+    assert head['m1'] == 0.1 and head['rho'] == 0.6 and head['L1'] == 1.0
+    assert doc['start']['guess'] == [[0.8, 0.8], [0.7, 0.7]]     # node default for head
+    assert doc['status'] == 'ok' and doc['final']['rho'] == [0.7, 0.55]
+    # CLI options override the file: geometry for every module, forces for the head
+    code, out, err = run(capsys, 'solve', '--config', path, '--L2', 1.1, '--F4', -3,
+                         '--starts', 8, '--json')
+    assert code == 0
+    assert "ignoring unknown parameter 'base.colour'" in err
+    base, head = json.loads(out)['params']
+    assert base['L2'] == head['L2'] == 1.1
+    assert base['f4y'] == 0.0 and head['f4y'] == -3.0 and head['f3y'] == -1.0
+    # the one-module default file is the paper's module at rho = 0.75
+    doc = run_json(capsys, 'solve', '--config', DEFAULT)
+    plain = run_json(capsys, 'solve', '--rho', 0.75)
+    assert doc['method'] == 'exact' and len(doc['equilibria']) == len(plain['equilibria'])
+
+
+@pytest.mark.parametrize('text', [
+    'not: [a, parameter, file',
+    '- 1\n- 2\n',
+    'node:\n  params:\n    modules: [m0]\n',
+    '/**:\n  ros__parameters:\n    modules: [m0]\n    m0.L1: -1\n',
+    '/**:\n  ros__parameters:\n    modules: [m0]\n    m0.force_a3: [1]\n',
+    '/**:\n  ros__parameters:\n    modules: [m0]\n    m0.k: abc\n',
+    '/**:\n  ros__parameters:\n    modules: [m0, m0]\n',
+    '/**:\n  ros__parameters:\n    modules: ["0bad"]\n',
+    'a:\n  ros__parameters: {modules: [m0]}\nb:\n  ros__parameters: {modules: [m1]}\n',
+], ids=['yaml', 'list', 'no-ros-params', 'negative', 'pair', 'string', 'repeat', 'name',
+        'two-nodes'])
+def test_bad_config_files_exit_2(capsys, tmp_path, text):
+    path = tmp_path / 'bad.yaml'
+    path.write_text(text)
+    code, out, err = run(capsys, 'solve', '--config', path)
+    assert code == 2 and out == ''
+    assert len(err.splitlines()) == 1 and 'error' in err and 'Traceback' not in err
+
+
+def test_stack_cli_does_not_import_rclpy_or_matplotlib():
+    code = ('import sys; from tensegrity_ros.cli import main; '
+            f'rc = main(["solve", "--config", {str(NECK)!r}, "--starts", "4", "--json"]); '
+            'bad = [m for m in ("rclpy", "matplotlib") if m in sys.modules]; '
+            'print(bad, file=sys.stderr); sys.exit(1 if bad or rc else 0)')
+    done = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+
+
+# ---------------------------------------------------------------------------
+# exact boundaries over a map; operation range; point C
+
+def paper_polynomials(F):
+    """Coefficients (in rho, highest first) of the paper's eqs. (15) and (16) at F (L = 1, k = 100)."""
+    p15 = [64e12, 0, 48e8 * F**2, 0, 12e4 * F**4 - 16e8 * F**2, 0, F**6]
+    p16 = [64e12, 0, 48e8 * F**2 - 192e12, 0, 12e4 * F**4 + 336e8 * F**2 + 192e12, 0,
+           F**6 - 12e4 * F**4 + 48e8 * F**2 - 64e12]
+    return p15, p16
+
+
+def relative_value(coefficients, x):
+    powers = x ** np.arange(len(coefficients) - 1, -1, -1)
+    return abs(np.dot(coefficients, powers)) / np.dot(np.abs(coefficients), np.abs(powers))
+
+
+def test_map_boundaries_csv_lies_on_eqs_15_and_16(capsys, tmp_path):
+    csv, png = tmp_path / 'b.csv', tmp_path / 'b.png'
+    code, out, err = run(capsys, 'map', '--x', 'rho', 0.004, 2, 40, '--y', 'F', -10, 0, 30,
+                         '--boundaries', '--boundaries-csv', csv, '--png', png)
+    assert code == 0, err
+    assert 'boundaries: 2 curves (1 branch_point, 1 fold' in out
+    lines = csv.read_text().splitlines()
+    assert lines[0] == 'curve,x,y,stable_boundary,kind'
+    rows = [line.split(',') for line in lines[1:]]
+    assert len(rows) > 100
+    kinds = {}
+    for curve, x, y, flag, kind in rows:
+        kinds.setdefault(kind, []).append((float(x), float(y), flag))
+    assert set(kinds) == {'branch_point', 'fold'}
+    for kind, which in (('branch_point', 0), ('fold', 1)):
+        points = kinds[kind]
+        assert all(flag == '1' for _, _, flag in points)     # both bound the 2-stable region
+        for rho, F, _ in points[5::len(points) // 4]:        # a few points along each curve
+            assert -10 <= F <= 0 and 0.004 <= rho <= 2
+            assert relative_value(paper_polynomials(F)[which], rho) < 1e-9, (kind, rho, F)
+    # the curves are where the map's count changes: F = -10 gives the fig. 4a interval
+    ends = sorted(x for x, y, _ in kinds['branch_point'] + kinds['fold'] if y == -10)
+    assert ends == pytest.approx([0.2149, 0.8034], abs=1e-3)
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_map_boundaries_csv_to_stdout(capsys):
+    code, out, err = run(capsys, 'map', '--x', 'rho', 0.005, 4, 20, '--y', 'L2', 0.005, 4, 20,
+                         '--boundaries-csv', '-')
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0] == 'curve,x,y,stable_boundary,kind'
+    assert 'boundaries: 3 curves (3 branch_point' in err
+    for line in lines[1::25]:                  # fig. 3: the three lines of DESIGN section 2
+        _, rho, L2, flag, kind = line.split(',')
+        rho, L2 = float(rho), float(L2)
+        assert min(abs(2 * rho - L2 - 1), abs(2 * rho - L2 + 1), abs(2 * rho + L2 - 1)) < 1e-9
+
+
+def test_range_fig8a_lower_branch(capsys):
+    doc = run_json(capsys, 'range', '--rho', 0.5, *FIG8A, *LOWER)
+    assert doc['rho_min'] == pytest.approx(0.1551013763, abs=1e-6)
+    assert doc['rho_max'] == pytest.approx(0.8745334419, abs=1e-6)
+    assert doc['rho_min'] == pytest.approx(C1_RHO, abs=1e-9)
+    assert doc['rho_max'] == pytest.approx(C2_RHO, abs=1e-9)
+    assert doc['lower']['kind'] == 'branch_point' and doc['lower']['symmetry'] == 'swap'
+    assert doc['upper']['kind'] == 'fold'
+    assert doc['start']['theta1'] < 0 and doc['start']['theta2'] < 0
+    assert doc['width'] == pytest.approx(doc['rho_max'] - doc['rho_min'])
+    code, out, err = run(capsys, 'range', '--rho', 0.5, *FIG8A, *LOWER)
+    assert code == 0, err
+    assert 'rho_min = 0.1551013763  (branch_point, swap symmetry)' in out
+    assert 'rho_max = 0.8745334419  (fold)' in out
+    # the upper branch is stable over the whole search interval
+    doc = run_json(capsys, 'range', '--rho', 0.5, *FIG8A, '--rho-bounds', 0.05, 2)
+    assert (doc['lower']['kind'], doc['upper']['kind']) == ('limit', 'limit')
+    assert (doc['rho_min'], doc['rho_max']) == (0.05, 2.0)
+
+
+def test_limit_point_c(capsys):
+    doc = run_json(capsys, 'limit', '--L2', 1)
+    assert doc['F3'] == pytest.approx(70.7106781187, abs=1e-6)
+    assert doc['F4'] == pytest.approx(70.7106781187, abs=1e-6)
+    assert doc['rho'] == pytest.approx(0.5 / math.sqrt(2), abs=1e-9)     # L1 L2 / (2 sqrt(L1^2 + L2^2))
+    doc = run_json(capsys, 'limit', '--L2', 1, '--pushing')
+    assert doc['F3'] == pytest.approx(-70.7106781187, abs=1e-6) and doc['side'] == 'pushing'
+    doc = run_json(capsys, 'limit', '--L2', 1.5, '--k', 50)
+    # closed form k (L2^2, L1^2) / sqrt(L1^2 + L2^2)
+    assert doc['F3'] == pytest.approx(50 * 2.25 / math.sqrt(3.25), rel=1e-10)
+    assert doc['F4'] == pytest.approx(50 * 1.0 / math.sqrt(3.25), rel=1e-10)
+    code, out, err = run(capsys, 'limit', '--L2', 1)
+    assert code == 0, err
+    assert 'F3 = 70.7106781187 N, F4 = 70.7106781187 N' in out

@@ -284,3 +284,15 @@ def test_equilibrium_record_round_trip():
     again = stack_equilibrium_at(stack, state.state)
     assert again.theta == pytest.approx(state.theta)
     assert again.stable
+
+
+def test_settle_from_near_a_maximum_comes_to_rest():
+    """All eigenvalues negative at the start: the overdamped flow still finds a minimum."""
+    from tensegrity_ros.core import TrackerSettings
+    stack = Stack((ModuleParams.paper(0.75), ModuleParams.paper(0.75),
+                   ModuleParams.paper(0.75, F3=-1, F4=-1)))
+    start = np.array([[2.347, -0.174], [2.593, 1.671], [2.61, -2.341]])
+    path = StackPath(stack, stack)
+    assert np.all(path.eigenvalues(path.state_from_angles(start, 0.0), 0.0) < 0)
+    landed = settle_stack(stack, start, settings=TrackerSettings(flow_evaluations=20000))
+    assert landed.stable

@@ -559,7 +559,7 @@ def settle(problem: PathProblem, y0, s=0.0, settings: TrackerSettings = TrackerS
     tracker = _Tracker(problem, settings)
     y0 = np.array(y0, dtype=float)
     eigenvalues, modes = problem.stability(y0, s)
-    tracker.scale = max(abs(eigenvalues[-1]), 1e-300)
+    tracker.scale = max(float(np.max(np.abs(eigenvalues))), 1e-300)   # any start, not only a minimum
     landing = tracker.slide(y0, s)
     if landing is not None:
         return landing

@@ -1,0 +1,312 @@
+#!/usr/bin/env python3
+"""Command-to-joint_states latency of tensegrity_node vs a bare rclpy relay, side by side.
+
+Three processes on loopback DDS (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, one
+``ROS_DOMAIN_ID`` of their own):
+
+* the node under test: ``python -m tensegrity_ros.node --ros-args --params-file
+  config/default.yaml`` in namespace ``/bench_node`` (exactly what ``make run`` starts);
+* a bare rclpy relay in ``/bench_relay``: subscribes ``m0/rho_cmd`` (std_msgs/Float64) and
+  publishes ``joint_states`` (sensor_msgs/JointState, same three joints) from the
+  callback, with the node's QoS - the floor any Python node can reach;
+* this driver: publishes ``m0/rho_cmd`` to both at 500 Hz and 1 kHz (the same value to
+  both, back to back, alternating which goes first), and timestamps the first
+  ``joint_states`` that reports each value.
+
+The command stream is a slow sine on the upper branch (rho 0.7..0.9, no jump), every
+value distinct.  A command lost = no joint_states reporting its value within the grace
+period.  Bounded: ``--seconds`` per rate (default 5) and a hard overall time limit.
+
+Target (issue #3): node p50 within 1.5x of the relay's, no command lost at 1 kHz.
+Exit status 0 unless ``--strict`` and the target is missed.
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIG = ROOT / 'config' / 'default.yaml'
+HARD_LIMIT_S = 240.0
+
+
+def _ros_env():
+    env = dict(os.environ)
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env.setdefault('ROS_DOMAIN_ID', str(101 + os.getpid() % 100))
+    env['PYTHONUNBUFFERED'] = '1'
+    env.pop('ROS_PYTHON_CHECK_FIELDS', None)
+    return env
+
+
+def _cpu_seconds(pid):
+    """User + system CPU time of a process (Linux /proc), or nan."""
+    try:
+        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+    except (OSError, IndexError, ValueError):
+        return float('nan')
+
+
+def _qos():
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    command = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
+    state = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE)
+    return command, state
+
+
+def run_relay(executor_kind='single'):
+    """The bare relay: Float64 in, JointState out, nothing else (``rclpy.spin``)."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.node import Node
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64
+
+    class Relay(Node):
+        def __init__(self):
+            super().__init__('relay')
+            command_qos, state_qos = _qos()
+            self.pub = self.create_publisher(JointState, 'joint_states', state_qos)
+            self.create_subscription(Float64, 'm0/rho_cmd', self.on_cmd, command_qos)
+
+        def on_cmd(self, msg):
+            out = JointState(name=['m0_rho', 'm0_theta1', 'm0_theta2'],
+                             position=[msg.data, 0.0, 0.0], effort=[0.0, 0.0, 0.0])
+            out.header.stamp = self.get_clock().now().to_msg()
+            self.pub.publish(out)
+
+    rclpy.init()
+    node = None
+    try:
+        node = Relay()
+        if executor_kind == 'events':       # for comparison only (--relay-executor events)
+            from rclpy.experimental import EventsExecutor
+            executor = EventsExecutor()
+            executor.add_node(node)
+            while rclpy.ok():
+                executor.spin_once(timeout_sec=0.1)
+        else:
+            rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+class Driver:
+    def __init__(self, targets):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64
+
+        self.Float64 = Float64
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node('latency_driver', context=self.context)
+        command_qos, _ = _qos()
+        self.targets = targets
+        self.pubs = {t: self.node.create_publisher(Float64, f'/{t}/m0/rho_cmd', command_qos)
+                     for t in targets}
+        self.sent = {t: {} for t in targets}       # value -> send time (ns)
+        self.received = {t: {} for t in targets}   # value -> first receive time (ns)
+        self.lock = threading.Lock()
+        sub_qos = _qos()[1].__class__(depth=1000, reliability=_qos()[1].reliability,
+                                      durability=_qos()[1].durability)
+        for t in targets:
+            self.node.create_subscription(JointState, f'/{t}/joint_states',
+                                          self._receiver(t), sub_qos)
+        try:        # the driver's own overhead is not what is measured: keep it small
+            from rclpy.experimental import EventsExecutor
+            self.executor = EventsExecutor(context=self.context)
+        except ImportError:
+            self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.running = True
+        self.thread.start()
+
+    def _spin(self):
+        while self.running:
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def _receiver(self, target):
+        received = self.received[target]
+
+        def on_state(msg):
+            now = time.perf_counter_ns()
+            value = msg.position[0]
+            if value not in received:
+                received[value] = now
+        return on_state
+
+    def wait_matched(self, timeout):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if all(p.get_subscription_count() > 0 for p in self.pubs.values()):
+                return True
+            time.sleep(0.05)
+        return False
+
+    def stream(self, rate, count, base, record=True):
+        """Publish ``count`` commands at ``rate`` Hz to every target; returns the values."""
+        period = 1e9 / rate
+        values = []
+        start = time.perf_counter_ns()
+        msg = self.Float64()
+        for i in range(count):
+            due = start + int(i * period)
+            delay = (due - time.perf_counter_ns()) * 1e-9
+            if delay > 0:
+                time.sleep(delay)
+            value = 0.8 + 0.1 * math.sin(2 * math.pi * (base + i) / 2000.0) + (base + i) * 1e-10
+            msg.data = value
+            order = self.targets if i % 2 == 0 else self.targets[::-1]
+            for t in order:
+                if record:
+                    self.sent[t][value] = time.perf_counter_ns()
+                self.pubs[t].publish(msg)
+            values.append(value)
+        return values
+
+    def wait_received(self, values, grace):
+        deadline = time.monotonic() + grace
+        while time.monotonic() < deadline:
+            if all(v in self.received[t] for t in self.targets for v in values[-50:]):
+                break
+            time.sleep(0.02)
+        time.sleep(0.2)
+
+    def stats(self, target, values):
+        sent, received = self.sent[target], self.received[target]
+        lat = sorted((received[v] - sent[v]) * 1e-3 for v in values if v in received)
+        lost = sum(1 for v in values if v not in received)
+
+        def pct(q):
+            if not lat:
+                return float('nan')
+            return lat[min(len(lat) - 1, int(round(q * (len(lat) - 1))))]
+        return {'sent': len(values), 'lost': lost, 'p50_us': pct(0.5), 'p90_us': pct(0.9),
+                'p99_us': pct(0.99), 'max_us': lat[-1] if lat else float('nan'),
+                'mean_us': sum(lat) / len(lat) if lat else float('nan')}
+
+    def close(self):
+        self.running = False
+        self.thread.join(timeout=2.0)
+        self.executor.shutdown()
+        self.node.destroy_node()
+        import rclpy
+        rclpy.try_shutdown(context=self.context)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--relay', action='store_true', help=argparse.SUPPRESS)
+    parser.add_argument('--rates', type=float, nargs='+', default=[500.0, 1000.0])
+    parser.add_argument('--seconds', type=float, default=5.0, help='stream length per rate')
+    parser.add_argument('--json', type=Path, help='also write the results here')
+    parser.add_argument('--relay-executor', choices=['single', 'events'], default='single',
+                        help='executor of the relay: single = rclpy.spin (the baseline), '
+                             'events = the EventsExecutor the node uses (for comparison)')
+    parser.add_argument('--node-executor', choices=['single', 'events'], default='events',
+                        help='executor of the node (tensegrity_node --executor)')
+    parser.add_argument('--only', choices=['node', 'relay'], help='run one side only (debug)')
+    parser.add_argument('--strict', action='store_true', help='exit 1 if the target is missed')
+    args, _ros_args = parser.parse_known_args(argv)    # --ros-args ... go to rclpy
+    if args.relay:
+        return run_relay(args.relay_executor)
+
+    env = _ros_env()
+    os.environ.update({k: env[k] for k in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_DOMAIN_ID')})
+    os.environ.pop('ROS_PYTHON_CHECK_FIELDS', None)
+    t_start = time.monotonic()
+    commands = {
+        'bench_node': [sys.executable, '-m', 'tensegrity_ros.node',
+                       '--executor', args.node_executor, '--ros-args',
+                       '--params-file', str(CONFIG), '-r', '__ns:=/bench_node'],
+        'bench_relay': [sys.executable, __file__, '--relay', '--relay-executor',
+                        args.relay_executor, '--ros-args', '-r', '__ns:=/bench_relay'],
+    }
+    if args.only:
+        commands = {f'bench_{args.only}': commands[f'bench_{args.only}']}
+    procs = [subprocess.Popen(c, cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.PIPE, text=True) for c in commands.values()]
+    driver = None
+    results = {}
+    try:
+        driver = Driver(list(commands))
+        if not driver.wait_matched(60.0):
+            errors = ''
+            for p in procs:
+                if p.poll() is not None:
+                    errors += p.stderr.read()
+            raise RuntimeError(f'node or relay not discovered within 60 s {errors}')
+        base = 0
+        # warm-up (discarded): discovery settles, caches fill
+        values = driver.stream(200.0, 200, base, record=True)
+        base += len(values)
+        driver.wait_received(values, 10.0)
+        for rate in args.rates:
+            if time.monotonic() - t_start > HARD_LIMIT_S:
+                break
+            count = int(rate * args.seconds)
+            cpu0 = {t: _cpu_seconds(p.pid) for t, p in zip(commands, procs)}
+            values = driver.stream(rate, count, base)
+            base += count
+            driver.wait_received(values, 5.0)
+            results[f'{rate:g}'] = {t: driver.stats(t, values) for t in driver.targets}
+            for t, p in zip(commands, procs):
+                cpu = _cpu_seconds(p.pid) - cpu0[t]
+                results[f'{rate:g}'][t]['cpu_us_per_command'] = cpu / count * 1e6
+    finally:
+        if driver is not None:
+            driver.close()
+        for p in procs:
+            if p.poll() is None:
+                p.send_signal(2)
+        for p in procs:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+    ok = True
+    load = os.getloadavg()[0] if hasattr(os, 'getloadavg') else float('nan')
+    print(f'command -> joint_states latency (us), {args.seconds:g} s per rate, '
+          f'loopback DDS, domain {env["ROS_DOMAIN_ID"]}, {os.cpu_count()} CPUs, '
+          f'load {load:.1f}; node executor {args.node_executor}, relay executor '
+          f'{args.relay_executor}')
+    print(f'{"rate":>6} {"process":<12} {"sent":>6} {"lost":>5} {"p50":>8} {"p90":>8} '
+          f'{"p99":>8} {"max":>9} {"mean":>8} {"cpu/cmd":>8}')
+    for rate, by_target in results.items():
+        for target, s in by_target.items():
+            print(f'{rate:>6} {target:<12} {s["sent"]:>6} {s["lost"]:>5} {s["p50_us"]:>8.0f} '
+                  f'{s["p90_us"]:>8.0f} {s["p99_us"]:>8.0f} {s["max_us"]:>9.0f} '
+                  f'{s["mean_us"]:>8.0f} {s["cpu_us_per_command"]:>8.0f}')
+        if len(by_target) < 2:
+            continue
+        node, relay = by_target['bench_node'], by_target['bench_relay']
+        ratio = node['p50_us'] / relay['p50_us']
+        by_target['p50_ratio'] = ratio
+        print(f'{rate:>6} node/relay p50 ratio {ratio:.2f} (target <= 1.5)')
+        if ratio > 1.5 or (float(rate) >= 1000.0 and node['lost'] > 0):
+            ok = False
+    print('target met' if ok else 'target NOT met')
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=2))
+    return 1 if (args.strict and not ok) else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,232 @@
+"""Message builders for the node: core results (numpy, dataclasses) <-> ROS messages.
+
+Kept apart from :mod:`tensegrity_ros.node` so that the node stays a thin layer of
+callbacks.  Nothing here talks to the ROS graph; every function only fills messages.
+
+Floats in ``diagnostic_msgs/KeyValue`` strings use :func:`fmt` (17 significant digits,
+enough to round-trip a double exactly): parse them with ``float(value)``.
+"""
+from __future__ import annotations
+
+import array
+
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Point
+from sensor_msgs.msg import JointState
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import Marker, MarkerArray
+
+OK = DiagnosticStatus.OK
+WARN = DiagnosticStatus.WARN
+ERROR = DiagnosticStatus.ERROR
+
+#: Text used in ``KeyValue`` strings for "no value" (e.g. no jump yet).
+NONE = 'none'
+
+
+def fmt(value) -> str:
+    """A ``KeyValue`` string: repr-precision float, 'true'/'false', integers as such."""
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, int):
+        return str(value)
+    if value is None:
+        return NONE
+    if isinstance(value, str):
+        return value
+    return format(float(value), '.17g')
+
+
+def fmt_vector(values) -> str:
+    """Several floats as a bracketed, comma-separated list: ``[a, b]``."""
+    return '[' + ', '.join(fmt(float(v)) for v in values) + ']'
+
+
+def key_values(pairs) -> list:
+    return [KeyValue(key=key, value=fmt(value)) for key, value in pairs]
+
+
+def joint_names(module: str):
+    """The three joint names of a module, in the order they are published."""
+    return (f'{module}_rho', f'{module}_theta1', f'{module}_theta2')
+
+
+class JointStateBuffer:
+    """One pre-built ``sensor_msgs/JointState`` for every hosted module, updated in place.
+
+    Publishing serialises the message at once, so the same object is reused for every
+    publication: no message or array allocation per command.
+    """
+
+    def __init__(self, modules):
+        self.msg = JointState()
+        names = []
+        for m in modules:
+            names.extend(joint_names(m))
+        self.msg.name = names
+        self.msg.position = array.array('d', [0.0] * len(names))
+        self.msg.effort = array.array('d', [0.0] * len(names))
+        self._position = self.msg.position
+        self._effort = self.msg.effort
+        self._stamp = self.msg.header.stamp
+
+    def set_module(self, index: int, rho: float, theta1: float, theta2: float,
+                   actuator_force: float):
+        base = 3 * index
+        position = self._position
+        position[base] = rho
+        position[base + 1] = theta1
+        position[base + 2] = theta2
+        self._effort[base] = actuator_force
+
+    def stamped(self, nanoseconds: int) -> JointState:
+        self._stamp.sec, self._stamp.nanosec = divmod(nanoseconds, 1_000_000_000)
+        return self.msg
+
+
+def normalized_margin(params, eq) -> float:
+    """Stability margin (smallest Hessian eigenvalue) over the module's stiffness scale.
+
+    The scale ``min(ka, kb, kc) * L1 * L2`` (J/rad^2) is the size of the Hessian's
+    spring terms: 1 is a stiff, well-conditioned module, 0 is a fold or branch point.
+    """
+    return float(eq.stability_margin) / (min(params.ka, params.kb, params.kc)
+                                         * params.L1 * params.L2)
+
+
+def equilibrium_status(*, name, hardware_id, module, params, eq, level, message,
+                       num_equilibria, num_stable, last_jump, jumps_total,
+                       tracking_status, warn_margin):
+    """``equilibrium`` DiagnosticStatus of one module (values: DESIGN section 5)."""
+    if last_jump is None:
+        last_kind, last_rho, last_s = NONE, NONE, NONE
+    else:
+        last_kind, last_rho = last_jump.kind, float(last_jump.params.rho)
+        last_s = float(last_jump.s)
+    status = DiagnosticStatus(level=level, name=name, message=message,
+                              hardware_id=hardware_id)
+    status.values = key_values((
+        ('module', module),
+        ('stable', bool(eq.stable)),
+        ('rho', params.rho),
+        ('theta1', eq.theta1),
+        ('theta2', eq.theta2),
+        ('stability_margin', eq.stability_margin),
+        ('stability_margin_normalized', normalized_margin(params, eq)),
+        ('warn_margin', warn_margin),
+        ('eigenvalues', fmt_vector(eq.eigenvalues)),
+        ('energy', eq.energy),
+        ('residual', float(eq.residual)),
+        ('actuator_force', eq.actuator_force),
+        ('num_equilibria', num_equilibria),
+        ('num_stable', num_stable),
+        ('L1', params.L1),
+        ('L2', params.L2),
+        ('ka', params.ka),
+        ('kb', params.kb),
+        ('kc', params.kc),
+        ('m1', params.m1),
+        ('m2', params.m2),
+        ('f3x', params.f3x),
+        ('f3y', params.f3y),
+        ('f4x', params.f4x),
+        ('f4y', params.f4y),
+        ('last_jump_kind', last_kind),
+        ('last_jump_rho', last_rho),
+        ('last_jump_s', last_s),
+        ('jumps_total', jumps_total),
+        ('tracking', tracking_status),
+    ))
+    return status
+
+
+def jump_status(*, name, hardware_id, module, jump, cause, index):
+    """One ``jumps`` message: a fold or branch point crossed, and where the module landed."""
+    rho = float(jump.params.rho)
+    f1, f2 = (float(v) for v in jump.from_theta)
+    t1, t2 = (float(v) for v in jump.to_theta)
+    message = (f'{jump.kind} at rho={rho:.6g}: theta ({f1:.4f}, {f2:.4f}) -> '
+               f'({t1:.4f}, {t2:.4f}) rad')
+    if jump.ambiguous:
+        message += ' (ambiguous landing)'
+    status = DiagnosticStatus(level=WARN, name=name, message=message,
+                              hardware_id=hardware_id)
+    status.values = key_values((
+        ('module', module),
+        ('kind', jump.kind),
+        ('rho', rho),
+        ('from_theta1', f1),
+        ('from_theta2', f2),
+        ('to_theta1', t1),
+        ('to_theta2', t2),
+        ('s', float(jump.s)),
+        ('ambiguous', bool(jump.ambiguous)),
+        ('f3x', jump.params.f3x),
+        ('f3y', jump.params.f3y),
+        ('f4x', jump.params.f4x),
+        ('f4y', jump.params.f4y),
+        ('cause', cause),
+        ('index', index),
+    ))
+    return status
+
+
+def _color(r, g, b, a=1.0):
+    return ColorRGBA(r=float(r), g=float(g), b=float(b), a=float(a))
+
+
+#: Rod / node colour by status level: green stable, orange near a jump, red otherwise.
+LEVEL_COLORS = {
+    OK: _color(0.1, 0.75, 0.2),
+    WARN: _color(1.0, 0.55, 0.0),
+    ERROR: _color(0.9, 0.1, 0.1),
+}
+SPRING_COLOR = _color(0.2, 0.45, 0.95, 0.9)
+ACTUATOR_COLOR = _color(0.55, 0.55, 0.55)
+
+#: Marker ids within a module's namespace.
+MARKER_RODS, MARKER_ACTUATOR, MARKER_SPRINGS, MARKER_NODES = 0, 1, 2, 3
+
+
+class ModuleMarkers:
+    """The four markers of one module (rods, actuator, springs, nodes), updated in place.
+
+    Points are in the module's base frame (origin A1, x along A1->A2, y up, z = 0):
+    the ``frame_id`` parameter names that frame.
+    """
+
+    def __init__(self, module: str):
+        def marker(kind, ident, color):
+            m = Marker(ns=module, id=ident, type=kind, action=Marker.ADD)
+            m.pose.orientation.w = 1.0
+            m.color = color
+            return m
+
+        self.rods = marker(Marker.LINE_LIST, MARKER_RODS, LEVEL_COLORS[OK])
+        self.actuator = marker(Marker.LINE_LIST, MARKER_ACTUATOR, ACTUATOR_COLOR)
+        self.springs = marker(Marker.LINE_LIST, MARKER_SPRINGS, SPRING_COLOR)
+        self.nodes = marker(Marker.SPHERE_LIST, MARKER_NODES, LEVEL_COLORS[OK])
+        self.markers = [self.rods, self.actuator, self.springs, self.nodes]
+
+    def update(self, positions, level, frame_id, stamp, size):
+        """``positions``: A1..A4 as a (4, 2) array; ``size``: a length scale (m)."""
+        a1, a2, a3, a4 = (Point(x=float(p[0]), y=float(p[1]), z=0.0) for p in positions)
+        color = LEVEL_COLORS.get(level, LEVEL_COLORS[ERROR])
+        self.rods.points = [a1, a3, a2, a4]
+        self.rods.color = color
+        self.rods.scale.x = 0.02 * size
+        self.actuator.points = [a1, a2]
+        self.actuator.scale.x = 0.03 * size
+        self.springs.points = [a2, a3, a1, a4, a3, a4]     # springs a, b, c
+        self.springs.scale.x = 0.008 * size
+        self.nodes.points = [a1, a2, a3, a4]
+        self.nodes.color = color
+        self.nodes.scale.x = self.nodes.scale.y = self.nodes.scale.z = 0.05 * size
+        for m in self.markers:
+            m.header.frame_id = frame_id
+            m.header.stamp = stamp
+        return self.markers
+
+
+def marker_array(markers) -> MarkerArray:
+    return MarkerArray(markers=list(markers))

@@ -49,6 +49,7 @@ from visualization_msgs.msg import MarkerArray
 from tensegrity_ros import ros_conversions as conv
 from tensegrity_ros.core import (InvalidParameterError, ModuleParams, TrackingError,
                                  equilibria, node_positions, settle, track_module)
+from tensegrity_ros.core.analysis import operation_range
 
 # ---------------------------------------------------------------------------
 # QoS (documented in msg_docs/ and README.md)
@@ -219,6 +220,7 @@ class ModuleSlot:
         self.dirty = True                           # equilibrium status out of date
         self.last_status = None
         self._count_cache = None
+        self._range_cache = None
         self.markers = conv.ModuleMarkers(name)
 
     def counts(self):
@@ -231,6 +233,20 @@ class ModuleSlot:
                 counts = (found.status, found.num_stable)
             self._count_cache = (self.params, counts)
         return self._count_cache[1]
+
+    def operation_range(self):
+        """Operation range of the live branch: the rho interval, everything else fixed, over
+        which it stays stable, with what ends it (exact; cached, the last range as a hint so
+        that a pure rho move costs ~20 us).  ``None`` if it cannot be computed."""
+        key = (self.params, self.eq.theta1, self.eq.theta2)
+        if self._range_cache is None or self._range_cache[0] != key:
+            hint = self._range_cache[1] if self._range_cache is not None else None
+            try:
+                found = operation_range(self.params, self.eq.theta, hint=hint)
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+                found = None           # degenerate point: no range; the status says 'unknown'
+            self._range_cache = (key, found)
+        return self._range_cache[1]
 
     def status_level(self):
         eq = self.eq
@@ -265,7 +281,7 @@ class TensegrityNode(Node):
     def _setup(self):
         self._node_clock = self.get_clock()
         self._counters = {f'rejected_{r}': 0 for r in REJECT_REASONS}
-        self._counters.update(commands_processed=0, callback_exceptions=0,
+        self._counters.update(commands_processed=0, callback_exceptions=0, jump_warnings=0,
                               tracking_failures=0, jumps_total=0)
         self._level_events = set()          # what happened since the last /diagnostics
         self._loggers = {}
@@ -739,6 +755,7 @@ class TensegrityNode(Node):
     def _command_rho(self, slot, value, cause):
         """Apply an actuator target; returns the time (ns) the new state holds for."""
         self._counters['commands_processed'] += 1
+        self._warn_if_jump_ahead(slot, value, cause)
         if slot.max_rho_rate > 0.0:
             now = self._now_ns()
             self._advance(slot, now)
@@ -750,6 +767,22 @@ class TensegrityNode(Node):
         if value != slot.params.rho:
             self._move(slot, slot.params.with_(rho=value), cause)
         return None
+
+    def _warn_if_jump_ahead(self, slot, target, cause):
+        """WARN (throttled, counted) before a command that leaves the live branch's
+        operation range: the mechanism will jump at the fold or branch point on the way."""
+        found = slot.operation_range()
+        if found is None:
+            return
+        end = found.lower if target < found.lower.rho else (
+            found.upper if target > found.upper.rho else None)
+        if end is None or end.kind == 'limit':
+            return
+        self._counters['jump_warnings'] += 1
+        self._throttled('jump_ahead').warning(
+            f'{slot.name}: {cause} to rho={target!r} leaves the stable branch at '
+            f'rho={end.rho!r} ({end.kind}): the mechanism will jump there',
+            throttle_duration_sec=WARN_THROTTLE_SEC)
 
     def _advance(self, slot, now_ns):
         """Speed-limited motion: move toward the pending target by max_rho_rate * elapsed."""
@@ -834,7 +867,7 @@ class TensegrityNode(Node):
             module=slot.name, params=slot.params, eq=slot.eq, level=level, message=message,
             num_equilibria=num, num_stable=num_stable, last_jump=slot.last_jump,
             jumps_total=slot.jumps_total, tracking_status=slot.tracking_status,
-            warn_margin=slot.warn_margin)
+            warn_margin=slot.warn_margin, operation_range=slot.operation_range())
         slot.last_status = status
         slot.dirty = False
         self._eq_pub.publish(status)

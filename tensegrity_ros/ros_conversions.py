@@ -96,7 +96,7 @@ def normalized_margin(params, eq) -> float:
 
 def equilibrium_status(*, name, hardware_id, module, params, eq, level, message,
                        num_equilibria, num_stable, last_jump, jumps_total,
-                       tracking_status, warn_margin):
+                       tracking_status, warn_margin, operation_range=None):
     """``equilibrium`` DiagnosticStatus of one module (values: DESIGN section 5)."""
     if last_jump is None:
         last_kind, last_rho, last_s = NONE, NONE, NONE
@@ -131,6 +131,10 @@ def equilibrium_status(*, name, hardware_id, module, params, eq, level, message,
         ('f3y', params.f3y),
         ('f4x', params.f4x),
         ('f4y', params.f4y),
+        ('rho_stable_min', NONE if operation_range is None else operation_range.lower.rho),
+        ('rho_stable_max', NONE if operation_range is None else operation_range.upper.rho),
+        ('rho_stable_min_end', NONE if operation_range is None else operation_range.lower.kind),
+        ('rho_stable_max_end', NONE if operation_range is None else operation_range.upper.kind),
         ('last_jump_kind', last_kind),
         ('last_jump_rho', last_rho),
         ('last_jump_s', last_s),

@@ -387,6 +387,26 @@ def test_fig8a_fold_when_rising_on_the_lower_branch(harness):
     assert t1 > 0 and t2 > 0
 
 
+def test_equilibrium_publishes_the_operation_range_and_warns_before_a_jump(harness):
+    """The live branch's operation range is in ``equilibrium``, exact (C1, C2 of fig. 8a),
+    and a command beyond it is warned about (and counted) before the jump happens."""
+    h = harness(fig8a_overrides()).ready()
+    v = h.wait_status(lambda v: v.get('rho_stable_min', 'none') != 'none')
+    assert float(v['rho_stable_min']) == pytest.approx(0.1551013762561726, abs=1e-9)
+    assert float(v['rho_stable_max']) == pytest.approx(0.8745334419192281, abs=1e-9)
+    assert (v['rho_stable_min_end'], v['rho_stable_max_end']) == ('branch_point', 'fold')
+    h.command_rho(0.3)                         # inside the range: no warning
+    h.spin_until(lambda: h.counter('jump_warnings') == 0, what='diagnostics')
+    h.command_rho(1.2)                         # beyond C2: warned, then the fold jump
+    h.spin_until(lambda: h.warnings('leaves the stable branch at rho=0.874533'),
+                 what='a WARN line before the jump')
+    h.spin_until(lambda: h.jumps, what='the jump')
+    h.spin_until(lambda: h.counter('jump_warnings') == 1, what='the warning counted')
+    # on the upper branch now: its range has no end in (0, 2 (L1 + L2)) above
+    v = h.wait_status(lambda v: float(v['rho']) == 1.2)
+    assert v['rho_stable_max_end'] == 'limit'
+
+
 def test_small_steps_cross_the_branch_point_too(harness):
     """A stream of small commands (a robot stack) finds the same jump as one big command."""
     h = harness(fig8a_overrides()).ready()

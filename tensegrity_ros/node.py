@@ -5,8 +5,11 @@ The node always sits on a verified stable equilibrium.  Every command (``<m>/rho
 moves the module's parameters along a straight path that the core tracker follows;
 every fold or branch point crossed on the way is published on ``jumps`` and logged.
 
-This issue supports exactly one module (``modules: ['m0']``); the parameters, topics and
-the per-module :class:`ModuleSlot` are laid out for a stack.  The node is a thin layer:
+One module (``modules: ['m0']``) runs on the fast one-module path (``track_module``).
+A stack of N >= 2 modules (a neck, ``modules: [m0, m1, ...]`` bottom to top) runs on the
+coupled stack core: the live state is one ``StackEquilibrium``; every change builds the end
+``Stack`` from all modules' live parameters and ``track_stack`` follows it from the live
+state (all changes of one message on one straight path).  The node is a thin layer:
 messages are converted to arrays, the core (:mod:`tensegrity_ros.core`) does the work,
 results are converted back (:mod:`tensegrity_ros.ros_conversions`).
 
@@ -27,12 +30,13 @@ if __name__ == '__main__' or os.path.basename(sys.argv[0]) == 'tensegrity_node':
     signal.signal(signal.SIGINT, lambda *_: os._exit(0))
     signal.signal(signal.SIGTERM, lambda *_: os._exit(0))
 
+import numpy as np
 import rclpy
 import rclpy.executors
 import rclpy.logging
 import rclpy.utilities
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import Vector3
+from geometry_msgs.msg import PoseStamped, Vector3
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
                               ParameterException)
@@ -48,8 +52,9 @@ from visualization_msgs.msg import MarkerArray
 
 from tensegrity_ros import ros_conversions as conv
 from tensegrity_ros.core import (InvalidParameterError, ModuleParams, TrackingError,
-                                 equilibria, node_positions, settle, track_module)
+                                 ModuleJump, equilibria, node_positions, settle, track_module)
 from tensegrity_ros.core.analysis import operation_range
+from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 
 # ---------------------------------------------------------------------------
 # QoS (documented in msg_docs/ and README.md)
@@ -72,6 +77,9 @@ JUMPS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
 STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
+#: ``head_pose``: latched (depth 1), like the status topics: a late subscriber gets the
+#: current head pose at once.  Published on every publish_rate tick, at start-up and reset.
+HEAD_QOS = STATUS_QOS
 #: ``markers``: latched too, so RViz started later still draws the mechanism.
 MARKERS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE,
@@ -82,8 +90,9 @@ DEFAULT_NODE_NAME = 'tensegrity'
 WARN_THROTTLE_SEC = 2.0
 #: A published state must have lambda_min > this * |lambda_max| (a verified minimum).
 DEFINITENESS_TOL = 1e-9
-#: How many modules this version can host (the coupled stack is a later issue).
-MAX_MODULES = 1
+#: How many modules one node hosts at most (a stack of N modules has 4N coupled unknowns;
+#: a command costs ~N^2 * 0.1 ms).
+MAX_MODULES = 20
 
 #: Reasons counted in ``/diagnostics`` (``rejected_<reason>``).
 REJECT_REASONS = (
@@ -179,7 +188,8 @@ NODE_PARAMETERS = (
     ('diagnostics_rate', 1.0, _D, 'Rate (Hz) of /diagnostics.', '0.1..100 Hz',
      (0.1, 100.0), False),
     ('frame_id', 'tensegrity_base', _S,
-     'Frame of the markers: the module base frame (origin A1, x along A1->A2, y up).',
+     'Frame of the markers and head_pose: the base frame of the bottom module (origin A1, '
+     'x along A1->A2, y up).',
      'non-empty', None, False),
 )
 _NODE_SPEC = {p[0]: p for p in NODE_PARAMETERS}
@@ -198,9 +208,10 @@ def _finite_pair(value):
 class ModuleSlot:
     """State of one hosted module: configuration, the live verified equilibrium, motion, stats."""
 
-    def __init__(self, name: str, index: int):
+    def __init__(self, name: str, index: int, in_stack: bool = False):
         self.name = name
         self.index = index
+        self.in_stack = in_stack                    # part of a stack of N >= 2 modules
         self.prefix = name + '.'
         self.params: ModuleParams | None = None    # live parameters (rho = actuator now)
         self.eq = None                              # live verified stable Equilibrium
@@ -224,7 +235,10 @@ class ModuleSlot:
         self.markers = conv.ModuleMarkers(name)
 
     def counts(self):
-        """(num_equilibria, num_stable) of the live parameters (exact, cached)."""
+        """(num_equilibria, num_stable) of the live parameters (exact, cached); (None, None)
+        in a stack (the exact solver is a one-module tool)."""
+        if self.in_stack:
+            return None, None
         if self._count_cache is None or self._count_cache[0] != self.params:
             found = equilibria(self.params)
             if found.status == 'ok':
@@ -237,7 +251,9 @@ class ModuleSlot:
     def operation_range(self):
         """Operation range of the live branch: the rho interval, everything else fixed, over
         which it stays stable, with what ends it (exact; cached, the last range as a hint so
-        that a pure rho move costs ~20 us).  ``None`` if it cannot be computed."""
+        that a pure rho move costs ~20 us).  ``None`` if it cannot be computed, or in a stack."""
+        if self.in_stack:
+            return None
         key = (self.params, self.eq.theta1, self.eq.theta2)
         if self._range_cache is None or self._range_cache[0] != key:
             hint = self._range_cache[1] if self._range_cache is not None else None
@@ -254,12 +270,18 @@ class ModuleSlot:
             return conv.ERROR, 'not a stable equilibrium'
         if self.tracking_status != 'ok':
             return conv.WARN, f'tracking stopped early: {self.tracking_status}'
-        normalized = conv.normalized_margin(self.params, eq)
+        normalized = self.normalized_margin()
         if normalized < self.warn_margin:
+            unit = 'N/m' if self.in_stack else 'J/rad^2'
             return conv.WARN, (f'stable, near a jump: stability margin '
-                               f'{eq.stability_margin:.4g} J/rad^2 (normalized {normalized:.3g} '
+                               f'{eq.stability_margin:.4g} {unit} (normalized {normalized:.3g} '
                                f'< warn_margin {self.warn_margin:g})')
         return conv.OK, f'stable, stability margin {eq.stability_margin:.4g}'
+
+    def normalized_margin(self):
+        if self.in_stack:
+            return self.eq.normalized
+        return conv.normalized_margin(self.params, self.eq)
 
 
 class TensegrityNode(Node):
@@ -289,11 +311,24 @@ class TensegrityNode(Node):
         self._hardware_id = self.get_fully_qualified_name()
 
         names = self._declare_modules()
-        self._slots = [ModuleSlot(m, i) for i, m in enumerate(names)]
+        in_stack = len(names) >= 2
+        self._slots = [ModuleSlot(m, i, in_stack) for i, m in enumerate(names)]
+        self._stack = None              # N >= 2: live Stack (its modules = the slots' params)
+        self._stack_eq = None           # N >= 2: live verified StackEquilibrium
+        self._stack_jumps = 0
         self._declare_parameters()
         self._warn_unknown_overrides()
         for slot in self._slots:
             self._configure_slot(slot)
+        if in_stack:
+            stack = Stack(tuple(slot.params for slot in self._slots))
+            eq, why = self._settle_stack(stack, self._current_values())
+            if eq is None:
+                raise ConfigurationError(
+                    f'stack {names}: no stable equilibrium from the modules\' initial_theta '
+                    f'at rho_initial: {why}')
+            self._set_stack(stack, eq)
+        self._head = conv.HeadPose()
         self._rho_joints = {f'{s.name}_rho': s for s in self._slots}
         self._js = conv.JointStateBuffer(names)
 
@@ -314,10 +349,16 @@ class TensegrityNode(Node):
 
         self._js_pub = publisher(JointState, 'joint_states', STATE_QOS)
         self._stable_pub = publisher(Bool, 'stable', STATUS_QOS)
-        self._eq_pub = publisher(DiagnosticStatus, 'equilibrium', STATUS_QOS)
+        # one latched status per module: a stack publishes all N together, depth N keeps
+        # every module's latest for a late subscriber (N = 1: depth 1, as STATUS_QOS)
+        eq_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=len(self._slots),
+                            reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self._eq_pub = publisher(DiagnosticStatus, 'equilibrium', eq_qos)
         self._jumps_pub = publisher(DiagnosticStatus, 'jumps', JUMPS_QOS)
         self._diag_pub = publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
         self._markers_pub = publisher(MarkerArray, 'markers', MARKERS_QOS)
+        self._head_pub = publisher(PoseStamped, 'head_pose', HEAD_QOS)
 
         for slot in self._slots:
             subscription(Float64, f'{slot.name}/rho_cmd', self._make_rho_callback(slot))
@@ -343,6 +384,7 @@ class TensegrityNode(Node):
         self.add_post_set_parameters_callback(self._apply_parameters)
 
         self._publish_joint_states()
+        self._publish_head_pose()
         for slot in self._slots:
             self._publish_status(slot)
         self._on_markers_tick()
@@ -359,15 +401,19 @@ class TensegrityNode(Node):
             names = self.declare_parameter(
                 'modules', ['m0'],
                 _descriptor('Hosted modules, bottom to top (names of topics and parameter '
-                            'prefixes). Read-only. This version hosts exactly one module.',
-                            type_=_SA, read_only=True, constraints='one module name')).value
+                            'prefixes). Read-only. One module, or a stack (neck) of up to '
+                            f'{MAX_MODULES}: module i+1 sits on the top chord of module i.',
+                            type_=_SA, read_only=True,
+                            constraints=f'1..{MAX_MODULES} distinct module names')).value
         except ParameterException as exc:
             raise ConfigurationError(f'parameter modules: {exc}') from None
         names = list(names or [])
-        if len(names) != MAX_MODULES:
+        if not 1 <= len(names) <= MAX_MODULES:
             raise ConfigurationError(
-                f'modules={names}: this version hosts exactly one module (the coupled '
-                f'statics of a stack come later); set modules to one name, e.g. [m0]')
+                f'modules: {len(names)} modules given; a node hosts 1 to {MAX_MODULES} '
+                f'modules (bottom to top), e.g. [m0] or [m0, m1, m2]')
+        if len(set(names)) != len(names):
+            raise ConfigurationError(f'modules={names}: module names must be distinct')
         for m in names:
             if not _MODULE_NAME.match(m):
                 raise ConfigurationError(
@@ -427,6 +473,9 @@ class TensegrityNode(Node):
             raise ConfigurationError(reason)
         self._mirror_settings(slot, get)
         params = self._module_params(get, get('rho_initial'), get('force_a3'), get('force_a4'))
+        if slot.in_stack:
+            slot.params = params            # the stack settles as a whole (_setup)
+            return
         try:
             eq = settle(params, get('initial_theta'))
         except (TrackingError, ValueError) as exc:
@@ -439,6 +488,26 @@ class TensegrityNode(Node):
                 f'{list(get("initial_theta"))} at rho={params.rho}: {why}')
         slot.eq = eq
         slot.params = params
+
+    def _settle_stack(self, stack, values):
+        """(stable StackEquilibrium from every module's initial_theta, '') or (None, why)."""
+        guess = [self._module_getter(slot, values)('initial_theta') for slot in self._slots]
+        try:
+            eq = settle_stack(stack, guess)
+        except (TrackingError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            return None, str(exc)
+        if not eq.stable:
+            return None, 'settled on a state that is not a stable equilibrium'
+        return eq, ''
+
+    def _set_stack(self, stack, eq):
+        """Make (stack, eq) the live state of a stack and of every module's slot."""
+        self._stack, self._stack_eq = stack, eq
+        scale = min(min(m.ka, m.kb, m.kc) for m in stack.modules)
+        for slot, params in zip(self._slots, stack.modules):
+            slot.params = params
+            slot.eq = conv.StackModuleState(eq, slot.index, scale)
+            slot.dirty = True
 
     # -- parameter values and checks ------------------------------------------------------
 
@@ -589,7 +658,10 @@ class TensegrityNode(Node):
             if 'frame_id' in names:
                 self._frame_id = self.get_parameter('frame_id').value
             values = self._current_values()
-            for slot in self._affected_slots(parameters):
+            affected = self._affected_slots(parameters)
+            if self._stack is not None:
+                return self._apply_stack_parameters(parameters, affected, values)
+            for slot in affected:
                 get = self._module_getter(slot, values)
                 self._mirror_settings(slot, get)
                 slot.dirty = True
@@ -607,6 +679,43 @@ class TensegrityNode(Node):
                 self._publish_status(slot)
         except Exception as exc:
             self._count_exception('parameter change', exc)
+
+    def _apply_stack_parameters(self, parameters, affected, values):
+        """Stack (N >= 2): every physical/force change of one parameter set is one path.
+
+        The jump reports name the module of the first parameter named in the set."""
+        now = self._now_ns()
+        for slot in affected:
+            self._mirror_settings(slot, self._module_getter(slot, values))
+            slot.dirty = True
+            self._advance(slot, now)
+        changes, keys_all, trigger = {}, [], None
+        for p in parameters:
+            slot = next((s for s in affected if p.name.startswith(s.prefix)), None)
+            if slot is None:
+                continue
+            key = p.name[len(slot.prefix):]
+            if _MODULE_SPEC[key][3] not in (PHYSICAL, FORCE):
+                continue
+            if trigger is None:
+                trigger = slot
+            keys_all.append(p.name)
+            if slot.index not in changes:
+                changes[slot.index] = set()
+            changes[slot.index].add(key)
+        if changes:
+            ends = {}
+            for index, keys in changes.items():
+                slot = self._slots[index]
+                get = self._module_getter(slot, values)
+                live = slot.params
+                f3 = get('force_a3') if 'force_a3' in keys else (live.f3x, live.f3y)
+                f4 = get('force_a4') if 'force_a4' in keys else (live.f4x, live.f4y)
+                ends[index] = self._module_params(get, live.rho, f3, f4)
+            self._move_stack(ends, 'parameter ' + ', '.join(sorted(keys_all)), trigger)
+            self._counters['commands_processed'] += 1
+            self._publish_joint_states()
+        self._publish_dirty_statuses()
 
     def _set_periodic(self, name, rate, now_ns):
         """markers_rate / diagnostics_rate: served by the publish_rate timer (0 = off)."""
@@ -700,6 +809,19 @@ class TensegrityNode(Node):
                 return self._reject('out_of_range', f'joint_commands: {name} = {value!r} outside '
                                                     f'[{slot.rho_min}, {slot.rho_max}]')
             targets[slot.name] = (slot, value)
+        if self._stack is not None and not any(s.max_rho_rate > 0.0 for s, _ in
+                                               targets.values()):
+            # a stack: every target on one straight path; jumps name the first joint's module
+            self._counters['commands_processed'] += len(targets)
+            ends = {}
+            for slot, value in targets.values():
+                slot.target = None
+                if value != slot.params.rho:
+                    ends[slot.index] = slot.params.with_(rho=value)
+            if ends:
+                trigger = next(iter(targets.values()))[0]
+                self._move_stack(ends, 'joint_commands', trigger)
+            return self._publish_joint_states()
         now = None
         for slot, value in targets.values():
             now = self._command_rho(slot, value, 'joint_commands')
@@ -708,6 +830,8 @@ class TensegrityNode(Node):
     def _on_reset(self, request, response):
         try:
             values = self._current_values()
+            if self._stack is not None:
+                return self._reset_stack(values, response)
             settled = []
             for slot in self._slots:
                 get = self._module_getter(slot, values)
@@ -737,6 +861,7 @@ class TensegrityNode(Node):
                 parts.append(f'{slot.name}: rho={params.rho!r} theta=({eq.theta1!r}, '
                              f'{eq.theta2!r})')
             self._publish_joint_states()
+            self._publish_head_pose()
             self._on_markers_tick()
             response.success = True
             response.message = 'reset to the initial state; ' + '; '.join(parts)
@@ -745,6 +870,39 @@ class TensegrityNode(Node):
             self._count_exception('reset', exc)
             response.success = False
             response.message = f'reset failed, state unchanged: {type(exc).__name__}: {exc}'
+        return response
+
+    def _reset_stack(self, values, response):
+        """Reset of a stack: settle the initial stack from every module's initial_theta."""
+        modules = []
+        for slot in self._slots:
+            get = self._module_getter(slot, values)
+            modules.append(self._module_params(get, get('rho_initial'), get('force_a3'),
+                                               get('force_a4')))
+        stack = Stack(tuple(modules))
+        eq, why = self._settle_stack(stack, values)
+        if eq is None:
+            response.success = False
+            response.message = (f'reset failed, state unchanged: no stable equilibrium of the '
+                                f'stack from initial_theta: {why}')
+            self.get_logger().error(response.message)
+            return response
+        self._set_stack(stack, eq)
+        self._stack_jumps = 0
+        self._last_stable = None
+        for slot in self._slots:
+            slot.target = None
+            slot.jumps_total, slot.last_jump = 0, None
+            slot.tracking_status = 'ok'
+            self._publish_status(slot)
+        self._publish_joint_states()
+        self._publish_head_pose()
+        self._on_markers_tick()
+        response.success = True
+        response.message = 'reset to the initial state; ' + '; '.join(
+            f'{slot.name}: rho={slot.params.rho!r} theta=({slot.eq.theta1!r}, '
+            f'{slot.eq.theta2!r})' for slot in self._slots)
+        self.get_logger().info(response.message)
         return response
 
     # -- motion ---------------------------------------------------------------------------
@@ -808,6 +966,8 @@ class TensegrityNode(Node):
         """Track the live equilibrium from the live parameters to ``end`` (one straight path)."""
         if end == slot.params:
             return
+        if self._stack is not None:
+            return self._move_stack({slot.index: end}, cause, slot)
         try:
             track = track_module(slot.params, end, slot.eq.theta)
         except TrackingError as exc:
@@ -828,6 +988,54 @@ class TensegrityNode(Node):
                                         f'{track.message}')
         elif slot.tracking_status != 'ok':
             slot.tracking_status = 'ok'
+
+    def _move_stack(self, ends, cause, trigger):
+        """Stack: track the live StackEquilibrium from the live stack to the stack whose
+        modules ``ends`` (index -> ModuleParams) replace the live ones, on one straight path.
+        Jumps are reported as triggered by the slot ``trigger``."""
+        start = self._stack
+        end = Stack(tuple(ends.get(slot.index, slot.params) for slot in self._slots))
+        if end == start:
+            return
+        try:
+            track = track_stack(start, end, self._stack_eq)
+        except (TrackingError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            self._tracking_failed(trigger, f'{cause}: {exc}')
+            return
+        final = track.final
+        low, high = final.eigenvalues[0], final.eigenvalues[-1]
+        if not low > DEFINITENESS_TOL * abs(high):
+            self._tracking_failed(trigger, f'{cause}: tracker returned an unstable state')
+            return
+        self._set_stack(track.end, final)
+        for jump in track.jumps:
+            self._report_stack_jump(trigger, jump, cause)
+        if track.status != 'ok':
+            self._tracking_failed(trigger, f'{cause}: stopped at {trigger.name} '
+                                           f'rho={trigger.params.rho!r}: {track.message}')
+        else:
+            for slot in self._slots:
+                slot.tracking_status = 'ok'
+        if track.jumps:
+            for slot in self._slots:
+                self._publish_status(slot)
+
+    def _report_stack_jump(self, trigger, jump, cause):
+        self._stack_jumps += 1
+        self._counters['jumps_total'] += 1
+        for slot in self._slots:        # the whole stack jumped: every module records it
+            slot.jumps_total = self._stack_jumps
+            slot.last_jump = ModuleJump(kind=jump.kind, s=jump.s,
+                                        params=jump.stack.modules[slot.index],
+                                        from_theta=jump.from_theta[slot.index],
+                                        to_theta=jump.to_theta[slot.index],
+                                        ambiguous=jump.ambiguous)
+        msg = conv.stack_jump_status(
+            name=f'{self.get_name()}: {trigger.name} jump', hardware_id=self._hardware_id,
+            modules=self.modules, index=trigger.index, jump=jump, cause=cause,
+            count=self._stack_jumps)
+        self._jumps_pub.publish(msg)
+        self.get_logger().warning(f'{trigger.name}: stack jump ({cause}): {msg.message}')
 
     def _tracking_failed(self, slot, text):
         self._counters['tracking_failures'] += 1
@@ -867,7 +1075,8 @@ class TensegrityNode(Node):
             module=slot.name, params=slot.params, eq=slot.eq, level=level, message=message,
             num_equilibria=num, num_stable=num_stable, last_jump=slot.last_jump,
             jumps_total=slot.jumps_total, tracking_status=slot.tracking_status,
-            warn_margin=slot.warn_margin, operation_range=slot.operation_range())
+            warn_margin=slot.warn_margin, operation_range=slot.operation_range(),
+            normalized=slot.normalized_margin())
         slot.last_status = status
         slot.dirty = False
         self._eq_pub.publish(status)
@@ -876,15 +1085,27 @@ class TensegrityNode(Node):
             self._last_stable = stable
             self._stable_pub.publish(Bool(data=stable))
 
+    def _publish_dirty_statuses(self):
+        """equilibrium of every module whose status is out of date; in a stack all N
+        together (in module order) as soon as one is, so the last N latched are one each."""
+        slots = self._slots
+        if self._stack is not None:
+            if any(slot.dirty for slot in slots):
+                for slot in slots:
+                    self._publish_status(slot)
+            return
+        for slot in slots:
+            if slot.dirty:
+                self._publish_status(slot)
+
     def _on_tick(self):
         now = self._now_ns()
         for slot in self._slots:
             if slot.target is not None:
                 self._advance(slot, now)
         self._publish_joint_states(now)
-        for slot in self._slots:
-            if slot.dirty:
-                self._publish_status(slot)
+        self._publish_head_pose()
+        self._publish_dirty_statuses()
         for name, action in (('markers_rate', self._on_markers_tick),
                              ('diagnostics_rate', self._publish_diagnostics)):
             entry = self._periodic[name]
@@ -898,10 +1119,23 @@ class TensegrityNode(Node):
         markers = []
         for slot in self._slots:
             level, _ = slot.status_level()
-            positions = node_positions(slot.params, slot.eq.theta)
+            if self._stack is not None:
+                positions = conv.stack_module_nodes(self._stack_eq.nodes, slot.index)
+            else:
+                positions = node_positions(slot.params, slot.eq.theta)
             size = max(slot.params.L1, slot.params.L2)
             markers.extend(slot.markers.update(positions, level, self._frame_id, stamp, size))
         self._markers_pub.publish(conv.marker_array(markers))
+
+    def _publish_head_pose(self):
+        """head_pose: midpoint and direction of the top chord A4 -> A3, in the base frame."""
+        if self._stack is not None:
+            position, angle = self._stack_eq.head_position, self._stack_eq.head_angle
+        else:
+            slot = self._slots[0]
+            position, angle = conv.head_of(node_positions(slot.params, slot.eq.theta))
+        self._head_pub.publish(self._head.update(position, angle, self._frame_id,
+                                                 self._node_clock.now().to_msg()))
 
     def _publish_diagnostics(self):
         events, self._level_events = self._level_events, set()
@@ -923,8 +1157,9 @@ class TensegrityNode(Node):
                                          if k.startswith('rejected_'))
         node_status.values = conv.key_values(sorted(counters.items()))
         statuses = [node_status]
+        self._publish_dirty_statuses()
         for slot in self._slots:
-            if slot.dirty or slot.last_status is None:
+            if slot.last_status is None:
                 self._publish_status(slot)
             statuses.append(slot.last_status)
         msg = DiagnosticArray(status=statuses)
@@ -938,9 +1173,14 @@ class TensegrityNode(Node):
         return [s.name for s in self._slots]
 
     def module_state(self, name='m0'):
-        """(live ModuleParams, live verified Equilibrium) of a module."""
+        """(live ModuleParams, live verified Equilibrium) of a module (in a stack: a
+        :class:`~tensegrity_ros.ros_conversions.StackModuleState`)."""
         slot = next(s for s in self._slots if s.name == name)
         return slot.params, slot.eq
+
+    def stack_state(self):
+        """(live Stack, live verified StackEquilibrium) of a stack; (None, None) for N = 1."""
+        return self._stack, self._stack_eq
 
     @property
     def counters(self):

@@ -11,7 +11,9 @@ from __future__ import annotations
 import array
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point
+import math
+
+from geometry_msgs.msg import Point, PoseStamped
 from sensor_msgs.msg import JointState
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
@@ -96,8 +98,14 @@ def normalized_margin(params, eq) -> float:
 
 def equilibrium_status(*, name, hardware_id, module, params, eq, level, message,
                        num_equilibria, num_stable, last_jump, jumps_total,
-                       tracking_status, warn_margin, operation_range=None):
-    """``equilibrium`` DiagnosticStatus of one module (values: DESIGN section 5)."""
+                       tracking_status, warn_margin, operation_range=None, normalized=None):
+    """``equilibrium`` DiagnosticStatus of one module (values: DESIGN section 5).
+
+    ``normalized``: the normalized stability margin if it is not the one-module
+    :func:`normalized_margin` (a stack: see :class:`StackModuleState`).
+    """
+    if normalized is None:
+        normalized = normalized_margin(params, eq)
     if last_jump is None:
         last_kind, last_rho, last_s = NONE, NONE, NONE
     else:
@@ -112,7 +120,7 @@ def equilibrium_status(*, name, hardware_id, module, params, eq, level, message,
         ('theta1', eq.theta1),
         ('theta2', eq.theta2),
         ('stability_margin', eq.stability_margin),
-        ('stability_margin_normalized', normalized_margin(params, eq)),
+        ('stability_margin_normalized', normalized),
         ('warn_margin', warn_margin),
         ('eigenvalues', fmt_vector(eq.eigenvalues)),
         ('energy', eq.energy),
@@ -173,6 +181,113 @@ def jump_status(*, name, hardware_id, module, jump, cause, index):
         ('index', index),
     ))
     return status
+
+
+def stack_jump_status(*, name, hardware_id, modules, index, jump, cause, count):
+    """One ``jumps`` message of a stack (N >= 2): a fold or branch point of the whole stack.
+
+    ``modules``: every module's name, bottom to top; ``index``: the module whose command
+    triggered the path.  ``rho``, ``from_theta1/2``, ``to_theta1/2`` and the forces are
+    that module's; ``from_<m>_theta1`` ... ``to_<m>_theta2`` give every module's angles
+    before (critical configuration) and after (landing).
+    """
+    params = jump.stack.modules[index]
+    rho = float(params.rho)
+    f1, f2 = (float(v) for v in jump.from_theta[index])
+    t1, t2 = (float(v) for v in jump.to_theta[index])
+    module = modules[index]
+    message = (f'{jump.kind} of the stack at {module} rho={rho:.6g}: {module} theta '
+               f'({f1:.4f}, {f2:.4f}) -> ({t1:.4f}, {t2:.4f}) rad')
+    if jump.ambiguous:
+        message += ' (ambiguous landing)'
+    status = DiagnosticStatus(level=WARN, name=name, message=message,
+                              hardware_id=hardware_id)
+    pairs = [
+        ('module', module),
+        ('kind', jump.kind),
+        ('rho', rho),
+        ('from_theta1', f1),
+        ('from_theta2', f2),
+        ('to_theta1', t1),
+        ('to_theta2', t2),
+        ('s', float(jump.s)),
+        ('ambiguous', bool(jump.ambiguous)),
+        ('f3x', params.f3x),
+        ('f3y', params.f3y),
+        ('f4x', params.f4x),
+        ('f4y', params.f4y),
+        ('cause', cause),
+        ('index', count),
+    ]
+    for i, m in enumerate(modules):
+        pairs.append((f'{m}_rho', float(jump.stack.modules[i].rho)))
+    for side, theta in (('from', jump.from_theta), ('to', jump.to_theta)):
+        for i, m in enumerate(modules):
+            pairs.append((f'{side}_{m}_theta1', float(theta[i][0])))
+            pairs.append((f'{side}_{m}_theta2', float(theta[i][1])))
+    status.values = key_values(pairs)
+    return status
+
+
+class StackModuleState:
+    """One module's view of a verified stack equilibrium, with the attributes the node
+    reads from a one-module ``Equilibrium`` (theta1, theta2, actuator_force, stable ...).
+
+    Stability is the whole stack's: ``stability_margin`` is the smallest reduced-Hessian
+    eigenvalue (N/m), ``eigenvalues`` all of them; ``normalized`` is the margin over
+    ``scale`` (the smallest spring stiffness of the stack, N/m).
+    """
+
+    __slots__ = ('stack', 'index', 'theta', 'theta1', 'theta2', 'actuator_force', 'stable',
+                 'stability_margin', 'eigenvalues', 'energy', 'residual', 'normalized')
+
+    def __init__(self, stack_eq, index, scale):
+        self.stack = stack_eq
+        self.index = index
+        self.theta = stack_eq.theta[index]
+        self.theta1 = float(self.theta[0])
+        self.theta2 = float(self.theta[1])
+        self.actuator_force = float(stack_eq.actuator_forces[index])
+        self.stable = stack_eq.stable
+        self.stability_margin = stack_eq.stability_margin
+        self.eigenvalues = stack_eq.eigenvalues
+        self.energy = float(stack_eq.energy)
+        self.residual = float(stack_eq.residual)
+        self.normalized = float(self.stability_margin) / scale
+
+
+def stack_module_nodes(nodes, index):
+    """A1..A4 of module ``index`` from a stack's node table (A1(0), A2(0), A3(i), A4(i))."""
+    a3, a4 = 2 + 2 * index, 3 + 2 * index
+    a1, a2 = (0, 1) if index == 0 else (a4 - 2, a3 - 2)
+    return nodes[[a1, a2, a3, a4]]
+
+
+def head_of(positions):
+    """Midpoint (x, y) and direction angle (rad) of the top chord A4 -> A3 of one module."""
+    a3, a4 = positions[2], positions[3]
+    return ((float(a3[0] + a4[0]) * 0.5, float(a3[1] + a4[1]) * 0.5),
+            math.atan2(float(a3[1] - a4[1]), float(a3[0] - a4[0])))
+
+
+class HeadPose:
+    """The pre-built ``head_pose`` message (geometry_msgs/PoseStamped), updated in place:
+    position = the top chord's midpoint (z = 0), orientation = rotation about z by the
+    chord's direction angle, in the frame ``frame_id`` (the stack's base frame)."""
+
+    def __init__(self):
+        self.msg = PoseStamped()
+
+    def update(self, position, angle, frame_id, stamp):
+        msg = self.msg
+        msg.header.frame_id = frame_id
+        msg.header.stamp = stamp
+        p = msg.pose.position
+        p.x, p.y, p.z = float(position[0]), float(position[1]), 0.0
+        q = msg.pose.orientation
+        q.x, q.y = 0.0, 0.0
+        q.z, q.w = math.sin(0.5 * angle), math.cos(0.5 * angle)
+        return msg
 
 
 def _color(r, g, b, a=1.0):

@@ -756,9 +756,12 @@ def test_qos_contract(harness):
 # Configuration errors
 
 
-def test_more_than_one_module_is_refused_at_startup(ros):
-    with pytest.raises(ConfigurationError, match='exactly one module'):
-        TensegrityNode(parameter_overrides=[Parameter('modules', value=['m0', 'm1'])])
+def test_more_than_max_modules_is_refused_at_startup(ros):
+    names = [f'm{i}' for i in range(21)]
+    with pytest.raises(ConfigurationError, match='21 modules given; a node hosts 1 to 20'):
+        TensegrityNode(parameter_overrides=[Parameter('modules', value=names)])
+    with pytest.raises(ConfigurationError, match='distinct'):
+        TensegrityNode(parameter_overrides=[Parameter('modules', value=['m0', 'm0'])])
 
 
 @pytest.mark.parametrize('overrides, words', [

@@ -1,0 +1,235 @@
+"""The neck stack through the node: config/neck.yaml (three modules) driven by topics.
+
+Uses the Harness of test_node.py (in-process node + client node, spun until a condition
+holds; no sleeps).  The expected jumps are computed with the core (track_stack) first.
+"""
+import math
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped, Vector3
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
+
+from tensegrity_ros.core.stack import settle_stack, track_stack
+from test_node import harness, ros  # noqa: F401  (fixtures)
+from test_node import LATCHED_QOS, PUB_QOS, ROOT, values
+
+pytestmark = pytest.mark.ros
+
+NECK_CONFIG = ROOT / 'config' / 'neck.yaml'
+MODULES = ('m0', 'm1', 'm2')
+JOINTS = [f'{m}_{j}' for m in MODULES for j in ('rho', 'theta1', 'theta2')]
+
+
+class Neck:
+    """Harness helpers for the three-module neck."""
+
+    def __init__(self, make, **kwargs):
+        self.h = h = make(cli_args=['--ros-args', '--params-file', str(NECK_CONFIG)], **kwargs)
+        c = h.client
+        self.rho_pubs = {m: c.create_publisher(Float64, f'{m}/rho_cmd', PUB_QOS)
+                         for m in MODULES}
+        self.force_pubs = {(m, w): c.create_publisher(Vector3, f'{m}/force_{w}', PUB_QOS)
+                           for m in MODULES for w in ('a3', 'a4')}
+        self.head = []
+        c.create_subscription(PoseStamped, 'head_pose', self.head.append, LATCHED_QOS)
+        h.ready()
+        pubs = [*self.rho_pubs.values(), *self.force_pubs.values()]
+        h.spin_until(lambda: all(p.get_subscription_count() > 0 for p in pubs) and self.head,
+                     what='neck discovery and head_pose')
+
+    def joints(self):
+        msg = self.h.joint_states[-1]
+        assert list(msg.name) == JOINTS
+        return dict(zip(msg.name, msg.position)), dict(zip(msg.name, msg.effort))
+
+    def wait_state(self, predicate, what):
+        h = self.h
+        n = len(h.joint_states)
+        h.spin_until(lambda: len(h.joint_states) > n and predicate(self.joints()[0]), what=what)
+        return self.joints()
+
+    def statuses(self):
+        """The last equilibrium status of every module."""
+        last = {}
+        for st in self.h.equilibrium:
+            v = values(st)
+            last[v['module']] = v
+        return last
+
+
+@pytest.fixture
+def neck(harness):
+    return lambda **kwargs: Neck(harness, **kwargs)
+
+
+def _angles(v, side):
+    return np.array([[float(v[f'{side}_{m}_theta1']), float(v[f'{side}_{m}_theta2'])]
+                     for m in MODULES])
+
+
+def test_neck_starts_upright_with_all_joints_and_head_pose(neck):
+    n = neck()
+    h = n.h
+    stack, eq = h.node.stack_state()
+    assert h.node.modules == list(MODULES) and len(stack) == 3 and eq.stable
+    pos, effort = n.joints()
+    assert [pos[f'{m}_rho'] for m in MODULES] == [0.09, 0.085, 0.08]
+    for i, m in enumerate(MODULES):
+        assert pos[f'{m}_theta1'] == eq.theta[i][0] and pos[f'{m}_theta2'] == eq.theta[i][1]
+        assert effort[f'{m}_rho'] == eq.actuator_forces[i]
+    # upright, symmetric: the head is level, centred over the base
+    head = n.head[-1]
+    assert head.header.frame_id == 'tensegrity_base'
+    assert head.pose.position.x == pytest.approx(eq.head_position[0], abs=1e-12)
+    assert head.pose.position.y == pytest.approx(eq.head_position[1], abs=1e-12)
+    assert head.pose.position.x == pytest.approx(0.045, abs=1e-9)
+    assert 2.0 * math.atan2(head.pose.orientation.z, head.pose.orientation.w) == \
+        pytest.approx(eq.head_angle, abs=1e-12)
+    # one equilibrium status per module, stability of the whole stack
+    h.spin_until(lambda: set(n.statuses()) == set(MODULES), what='three statuses')
+    for m, v in n.statuses().items():
+        assert v['stable'] == 'true'
+        assert float(v['stability_margin']) == pytest.approx(eq.stability_margin)
+        assert v['num_equilibria'] == 'none' and v['rho_stable_min'] == 'none'
+    h.spin_until(lambda: h.markers, what='markers')
+    ns = {mk.ns for mk in h.markers[-1].markers}
+    assert ns == set(MODULES)
+    nodes = next(mk for mk in h.markers[-1].markers if mk.ns == 'm2' and mk.id == 3).points
+    # m2's A1, A2 are m1's A4, A3 (stack node table: A3(1) = 4, A4(1) = 5)
+    assert (nodes[0].x, nodes[0].y) == pytest.approx(tuple(eq.nodes[5]))
+    assert (nodes[1].x, nodes[1].y) == pytest.approx(tuple(eq.nodes[4]))
+
+
+def test_lower_module_command_moves_the_whole_neck(neck):
+    n = neck()
+    h = n.h
+    stack0, eq0 = h.node.stack_state()
+    n.rho_pubs['m1'].publish(Float64(data=0.09))
+    pos, effort = n.wait_state(lambda p: p['m1_rho'] == 0.09, 'm1_rho = 0.09')
+    stack, eq = h.node.stack_state()
+    expected = track_stack(stack0, stack0.with_module(1, rho=0.09), eq0)
+    assert not expected.jumps and eq.stable
+    np.testing.assert_allclose(eq.theta, expected.final.theta, atol=1e-9)
+    assert pos['m0_rho'] == 0.09 and pos['m2_rho'] == 0.08
+    for i, m in enumerate(MODULES):
+        assert pos[f'{m}_theta1'] == eq.theta[i][0]
+    assert not h.jumps
+    # joint_commands: two actuators on one path
+    h.jc_pub.publish(JointState(name=['m0_rho', 'm2_rho'], position=[0.1, 0.075]))
+    pos, _ = n.wait_state(lambda p: p['m0_rho'] == 0.1 and p['m2_rho'] == 0.075,
+                          'joint_commands state')
+    assert pos['m1_rho'] == 0.09
+    n.h.spin_until(lambda: n.head and n.head[-1].pose.position.y == pytest.approx(
+        h.node.stack_state()[1].head_position[1], abs=1e-12), what='new head pose')
+
+
+def test_head_load_jump_reported_by_a_lower_module_command(neck):
+    n = neck()
+    h = n.h
+    # a heavy head (3.5 N per head node, below the ~3.9 N sideways buckling load) in one
+    # parameter set = one path: no jump yet
+    stack0, eq0 = h.node.stack_state()
+    loaded = stack0.with_module(2, f3y=-3.5, f4y=-3.5)
+    assert not track_stack(stack0, loaded, eq0).jumps
+    result = h.node.set_parameters_atomically([Parameter('m2.force_a3', value=[0.0, -3.5]),
+                                               Parameter('m2.force_a4', value=[0.0, -3.5])])
+    assert result.successful
+    stack, eq = h.node.stack_state()
+    assert stack == loaded and eq.stable and not h.node.counters['jumps_total']
+    # shortening m1 now buckles the neck sideways (found with the core first)
+    expected = track_stack(stack, stack.with_module(1, rho=0.07), eq)
+    assert [j.kind for j in expected.jumps] == ['branch_point']
+    jump = expected.jumps[0]
+    n.rho_pubs['m1'].publish(Float64(data=0.07))
+    h.spin_until(lambda: h.jumps, what='a jump')
+    msg = h.jumps[-1]
+    assert msg.level == DiagnosticStatus.WARN
+    v = values(msg)
+    assert v['module'] == 'm1' and v['kind'] == 'branch_point' and v['cause'] == 'rho_cmd'
+    assert float(v['rho']) == pytest.approx(jump.stack.modules[1].rho, abs=1e-9)
+    assert 0.07 < float(v['rho']) < 0.085
+    assert float(v['s']) == pytest.approx(jump.s, abs=1e-9)
+    assert v['ambiguous'] == ('true' if jump.ambiguous else 'false')
+    np.testing.assert_allclose(_angles(v, 'from'), jump.from_theta, atol=1e-9)
+    np.testing.assert_allclose(_angles(v, 'to'), jump.to_theta, atol=1e-9)
+    assert float(v['from_theta1']) == float(v['from_m1_theta1'])
+    assert float(v['to_theta2']) == float(v['to_m1_theta2'])
+    # the node lands where the core does; every module records the jump
+    h.spin_until(lambda: h.node.stack_state()[0].modules[1].rho == 0.07, what='landing')
+    np.testing.assert_allclose(h.node.stack_state()[1].theta, expected.final.theta, atol=1e-8)
+    h.spin_until(lambda: all(v.get('last_jump_kind') == 'branch_point'
+                             for v in n.statuses().values()), what='statuses with the jump')
+    # sideways: the head has turned
+    assert abs(h.node.stack_state()[1].head_angle) > 0.05
+    # reset returns to rho_initial (with the force parameters now set) and settles upright
+    result = h.call(h.reset_client.call_async(Trigger.Request()), 'reset')
+    assert result.success
+    stack, eq = h.node.stack_state()
+    assert stack == loaded and eq.stable
+    np.testing.assert_allclose(eq.theta, settle_stack(loaded, eq0.theta).theta, atol=1e-12)
+    assert eq.theta[2][0] == pytest.approx(eq.theta[2][1], abs=1e-9)      # upright again
+
+
+def test_head_load_jump_is_named_after_the_head_module(neck):
+    n = neck()
+    h = n.h
+    stack0, eq0 = h.node.stack_state()
+    expected = track_stack(stack0, stack0.with_module(2, f3y=-5.0, f4y=-5.0), eq0)
+    assert [j.kind for j in expected.jumps] == ['branch_point']
+    # both head forces in one atomic parameter set: one symmetric path
+    result = h.node.set_parameters_atomically([Parameter('m2.force_a3', value=[0.0, -5.0]),
+                                               Parameter('m2.force_a4', value=[0.0, -5.0])])
+    assert result.successful
+    h.spin_until(lambda: h.jumps, what='a jump')
+    v = values(h.jumps[-1])
+    assert v['module'] == 'm2' and v['kind'] == 'branch_point'
+    assert v['cause'] == 'parameter m2.force_a3, m2.force_a4'
+    assert float(v['rho']) == 0.08
+    assert float(v['f3y']) == pytest.approx(expected.jumps[0].stack.modules[2].f3y, abs=1e-9)
+    np.testing.assert_allclose(_angles(v, 'to'), expected.jumps[0].to_theta, atol=1e-9)
+
+
+def test_bad_input_on_a_stack_module_is_dropped_and_counted(neck):
+    n = neck()
+    h = n.h
+
+    def rejected(key, send):
+        h.spin_until(lambda: h.counter(key) is not None, what='/diagnostics')
+        before = h.counter(key)
+        state = h.node.stack_state()
+        send()
+        h.spin_until(lambda: h.counter(key) == before + 1, what=f'{key} + 1')
+        assert h.node.stack_state() == state
+    rejected('rejected_non_finite', lambda: n.rho_pubs['m1'].publish(Float64(data=math.nan)))
+    rejected('rejected_out_of_range', lambda: n.rho_pubs['m2'].publish(Float64(data=0.5)))
+    rejected('rejected_non_finite',
+             lambda: n.force_pubs[('m2', 'a3')].publish(Vector3(x=math.inf, y=0.0)))
+    rejected('rejected_unknown_joint',
+             lambda: h.jc_pub.publish(JointState(name=['m1_rho', 'm7_rho'],
+                                                 position=[0.09, 0.09])))
+    rejected('rejected_size_mismatch',
+             lambda: h.jc_pub.publish(JointState(name=['m0_rho', 'm1_rho'], position=[0.09])))
+    pos, _ = n.joints()
+    assert [pos[f'{m}_rho'] for m in MODULES] == [0.09, 0.085, 0.08]
+    assert h.node.counters['callback_exceptions'] == 0
+
+
+def test_force_topics_of_a_stack_module_are_tracked_in_the_base_frame(neck):
+    n = neck()
+    h = n.h
+    stack0, eq0 = h.node.stack_state()
+    n.force_pubs[('m1', 'a3')].publish(Vector3(x=0.5, y=0.0, z=7.0))     # z is ignored
+    h.spin_until(lambda: h.node.stack_state()[0].modules[1].f3x == 0.5, what='m1 force')
+    stack, eq = h.node.stack_state()
+    expected = track_stack(stack0, stack0.with_module(1, f3x=0.5), eq0)
+    assert stack == stack0.with_module(1, f3x=0.5)
+    np.testing.assert_allclose(eq.theta, expected.final.theta, atol=1e-9)
+    pos, _ = n.wait_state(lambda p: p['m0_theta1'] == eq.theta[0][0], 'pushed state')
+    # pushed sideways (+x) at m1's A3: the head moves toward +x
+    h.spin_until(lambda: n.head[-1].pose.position.x > 0.046, what='head moved')
+    assert n.head[-1].pose.position.x == pytest.approx(eq.head_position[0], abs=1e-12)

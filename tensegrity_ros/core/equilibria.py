@@ -15,10 +15,29 @@ their solution gives one trigonometric polynomial of degree 3 in t1,
 
 i.e. a degree-6 polynomial in z = exp(i t1) whose roots on the unit circle are
 the t1 of the equilibria (no tan-half singularity at t = pi).  For each root,
-g1 gives t1 + t2 = asin(r / (kc L2)) or pi - asin(...): both candidates are
-checked against g2, which also covers the singular case D = 0 (unloaded flat
-configurations, where both are solutions).  Candidates are then polished with
-Newton on the trigonometric equations, verified and de-duplicated on the torus.
+g1 gives t1 + t2 = asin(r / (kc L2)) or pi - asin(...), checked against g2,
+which also covers the singular case D = 0 (unloaded flat configurations, where
+both are solutions); g2 gives the direction of (cos t2, sin t2), checked
+against g1, which stays accurate when the loads dwarf kc L2 and the first
+route does not.  Candidates are then polished with Newton on the
+trigonometric equations, verified and de-duplicated on the torus.
+
+Degenerate parameters:
+- no vertical load (b1 = b2 = 0: unloaded, horizontal forces only): P =
+  sin(t1)^2 R(t1) with R linear in cos t1, so the four flat configurations
+  and the non-flat pair are taken in closed form (root finding cannot separate
+  the double roots at 0 and pi from the pair merging into them on the
+  boundary lines);
+- near a fold the polynomial returns two close roots as a complex pair: a
+  candidate whose Newton iteration stalls is analysed along the critical
+  direction (a Lyapunov-Schmidt reduction): two roots, or none (a "ghost" just
+  past the fold);
+- near any multiple root, solutions within each other's error bounds are one
+  root (clusters), and a root that is a double root within rounding is
+  reported at the singular point, i.e. as degenerate;
+- a continuum of equilibria is reported as such.
+The batch form is a vectorised fast path for generic points and hands every
+delicate row to the scalar solver, so both give the same answer.
 """
 from __future__ import annotations
 
@@ -34,15 +53,33 @@ from . import module as _module
 UNIT_CIRCLE_TOL = 1e-3
 #: A t2 candidate is kept for polishing if |g2| is below this (relative to the scale).
 CANDIDATE_TOL = 1e-2
-#: A polished solution is an equilibrium if max |g| is below this (relative).
-RESIDUAL_TOL = 1e-10
+#: A polished solution is an equilibrium if max |g| (relative to the scale) has
+#: converged below this (rounding level).  A genuine root, even a multiple one,
+#: gets there within NEWTON_MAX_ITER steps; a candidate that does not is analysed
+#: as a near-fold (see _solve_from) and otherwise dropped.
+CONVERGED_TOL = 1e-14
 #: Two solutions closer than this on the torus (rad, max norm) are one.
 DUPLICATE_TOL = 1e-7
+#: Closer than this they are the same point (merged before any other analysis).
+IDENTICAL_TOL = 1e-12
+#: Near a multiple root (fold, pitchfork, the unloaded boundary lines) polishing
+#: stops anywhere in a small set where |g| is at rounding level.  With the
+#: reduced coefficients at hand, two solutions are one if they are closer than
+#: CLUSTER_FACTOR times the larger of their error bounds (residual +
+#: ROUNDING_NOISE) / sigma_min(Jacobian) (all relative to the scale), capped at
+#: CLUSTER_RADIUS (rad); DUPLICATE_TOL applies only without them.
+CLUSTER_FACTOR = 4.0
+CLUSTER_RADIUS = 1e-2
+#: The batch hands rows with two solutions closer than this to the scalar path
+#: (rows with a merge at a larger distance have a nearly singular equilibrium,
+#: see HARD_TOL, and go there anyway).
+CROWDED_RADIUS = 1e-4
+ROUNDING_NOISE = 1e-15
 #: An eigenvalue with |lambda| <= DEGENERACY_TOL * max|lambda| counts as zero.
 DEGENERACY_TOL = 1e-8
 #: The polynomial vanishes identically (a continuum of equilibria) below this.
 CONTINUUM_TOL = 1e-13
-NEWTON_MAX_ITER = 12
+NEWTON_MAX_ITER = 40
 
 KIND_MINIMUM = 'minimum'
 KIND_SADDLE = 'saddle'
@@ -160,7 +197,9 @@ def _second_angle_candidates(t1, a1, b1, kcL2):
 
 def _wrap(angle):
     """Angle in [-pi, pi)."""
-    return (angle + np.pi) % (2.0 * np.pi) - np.pi
+    wrapped = (angle + np.pi) % (2.0 * np.pi) - np.pi
+    # (-tiny) % (2 pi) rounds to 2 pi: -pi - 4e-16 would come out as +pi
+    return np.where(wrapped >= np.pi, wrapped - 2.0 * np.pi, wrapped)
 
 
 def hessian_eigenvalues(h11, h12, h22):
@@ -205,7 +244,12 @@ def _polynomial_scalar(a1, b1, a2, b2, kcL1, kcL2):
 
 
 def _polish(t1, t2, a1, b1, a2, b2, kcL1, kcL2, tol):
-    """Newton on (g1, g2) from one candidate; returns (t1, t2, max |g|)."""
+    """Newton on (g1, g2) from one candidate; returns (t1, t2, max |g|).
+
+    If Newton does not converge, the best iterate seen is returned (with its
+    own residual).
+    """
+    best = (t1, t2, math.inf)
     for _ in range(NEWTON_MAX_ITER + 1):
         s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
         s12 = s1 * c2 + c1 * s2
@@ -215,6 +259,8 @@ def _polish(t1, t2, a1, b1, a2, b2, kcL1, kcL2, tol):
         residual = max(abs(g1), abs(g2))
         if residual <= tol:
             break
+        if residual < best[2]:
+            best = (t1, t2, residual)
         j11 = a1 * c1 + b1 * s1 - kcL2 * c12
         j22 = a2 * c2 + b2 * s2 - kcL1 * c12
         det = j11 * j22 - kcL1 * kcL2 * c12 * c12
@@ -226,6 +272,8 @@ def _polish(t1, t2, a1, b1, a2, b2, kcL1, kcL2, tol):
         t2 -= d2
         if abs(d1) + abs(d2) < 1e-15:
             tol = math.inf           # converged as far as floating point goes
+    else:
+        return best
     return t1, t2, residual
 
 
@@ -240,49 +288,364 @@ def equilibria(params: ModuleParams) -> EquilibriumSet:
     p = params
     consts = _reduced_coefficients(p.rho, p.L1, p.L2, p.ka, p.kb, p.kc,
                                    p.f3x, p.f3y_total, p.f4x, p.f4y_total)
+    found = _solve_scalar(consts)
+    if found is None:
+        return EquilibriumSet(params, (), 'continuum')
+    return EquilibriumSet(params, _build(params, found))
+
+
+def _solve_scalar(consts):
+    """Every equilibrium [(t1, t2, relative residual)] for one point, None if a continuum."""
     a1, b1, a2, b2, kcL1, kcL2 = consts
     scale = max(abs(c) for c in consts)
     coefficients = _polynomial_scalar(*consts)
     if max(abs(c) for c in coefficients) <= CONTINUUM_TOL * scale ** 4:
-        return EquilibriumSet(params, (), 'continuum')
-
+        return None
+    if b1 == 0.0 and b2 == 0.0:
+        first_angles = _horizontal_load_first_angles(a1, a2, kcL1, kcL2)
+    else:
+        first_angles = []
+        for z in _polynomial_roots(coefficients):
+            modulus = abs(z)
+            if modulus != 0.0 and abs(math.log(modulus)) < UNIT_CIRCLE_TOL:
+                first_angles.append(math.atan2(z.imag, z.real))
     found = []
-    for z in _polynomial_roots(coefficients):
-        modulus = abs(z)
-        if modulus == 0.0 or abs(math.log(modulus)) >= UNIT_CIRCLE_TOL:
-            continue
-        t1 = math.atan2(z.imag, z.real)
-        s1, c1 = math.sin(t1), math.cos(t1)
-        phi = math.asin(min(1.0, max(-1.0, (a1 * s1 - b1 * c1) / kcL2)))
-        for t2 in (phi - t1, math.pi - phi - t1):
-            g2 = a2 * math.sin(t2) - b2 * math.cos(t2) - kcL1 * math.sin(t1 + t2)
-            if abs(g2) > CANDIDATE_TOL * scale:
-                continue
-            u1, u2, residual = _polish(t1, t2, *consts, tol=4e-16 * scale)
-            if residual <= RESIDUAL_TOL * scale:
+    for t1 in first_angles:
+        for t2 in _second_angles(t1, consts, scale):
+            for u1, u2, residual in _solve_from(t1, t2, consts, scale):
                 found.append((_wrap_scalar(u1), _wrap_scalar(u2), residual / scale))
-    return EquilibriumSet(params, _build(params, _unique(found)))
+    return _snap_double_roots(_unique(found, consts), consts)
+
+
+#: A g2-route candidate for t2 is redundant within this of a g1-route one (rad).
+SECOND_ROUTE_SEPARATION = 1e-3
+
+
+def _second_angles(t1, consts, scale):
+    """Candidate t2 for one t1 (see :func:`_batch_candidates` for the two routes)."""
+    a1, b1, a2, b2, kcL1, kcL2 = consts
+    s1, c1 = math.sin(t1), math.cos(t1)
+    r = a1 * s1 - b1 * c1
+    tol = CANDIDATE_TOL * scale
+    out = []
+    phi = math.asin(min(1.0, max(-1.0, r / kcL2)))
+    for t2 in (phi - t1, math.pi - phi - t1):
+        if abs(a2 * math.sin(t2) - b2 * math.cos(t2) - kcL1 * math.sin(t1 + t2)) <= tol:
+            out.append(t2)
+    first = list(out)
+    psi = math.atan2(b2 + kcL1 * s1, a2 - kcL1 * c1)
+    for t2 in (psi, psi + math.pi):
+        if abs(r - kcL2 * math.sin(t1 + t2)) > tol:
+            continue
+        if all(min(abs(t2 - u) % (2 * math.pi), 2 * math.pi - abs(t2 - u) % (2 * math.pi))
+               > SECOND_ROUTE_SEPARATION for u in first):
+            out.append(t2)
+    return out
+
+
+def _solve_from(t1, t2, consts, scale):
+    """Polished equilibria [(t1, t2, max |g|)] from one candidate (usually one).
+
+    Near a fold the polynomial cannot separate two close roots (they come out
+    as a complex pair, accurate to about the square root of the rounding) and
+    Newton from their real part stalls near the singular curve.  A candidate
+    that does not converge is therefore analysed along the critical direction
+    (:func:`_fold_split`), first from where it started (the real part of the
+    pair, near the fold), then from where Newton stalled: two roots there are
+    polished separately; none (the "ghost" of a fold just past it) means no
+    equilibrium, unless the closest approach is at rounding level (a double
+    root).  A candidate that neither converges nor resolves this way is not
+    an equilibrium (a genuine root, even a multiple one, converges within
+    NEWTON_MAX_ITER steps to rounding level).  A converged root close to
+    singular also gets its fold partner looked for (:func:`_fold_partner`).
+    """
+    u1, u2, residual = _polish(t1, t2, *consts, tol=4e-16 * scale)
+    if residual <= CONVERGED_TOL * scale:
+        partner = _fold_partner(u1, u2, consts, scale)
+        return [(u1, u2, residual)] + ([partner] if partner else [])
+    for origin in ((t1, t2), (u1, u2)):
+        kind, points = _fold_split(*origin, *consts)
+        if kind == 'ghost':
+            v1, v2 = points[0]
+            closest = max(map(abs, _residual(v1, v2, *consts)))
+            return [(v1, v2, closest)] if closest <= CONVERGED_TOL * scale else []
+        split = []
+        for v1, v2 in points:
+            w1, w2, r = _polish(v1, v2, *consts, tol=4e-16 * scale)
+            if r <= CONVERGED_TOL * scale:
+                split.append((w1, w2, r))
+        if split:
+            return split
+    return []
+
+
+#: The fold analysis applies only if the predicted roots are this close (rad).
+FOLD_SPLIT_RADIUS = 1e-3
+
+
+#: A converged root this close to singular (sigma_min / scale) gets its fold
+#: partner looked for: both candidates of a close pair may converge to one root.
+PARTNER_SEARCH = 1e-5
+#: A root is a double root within rounding if sigma_min^2 <= 2 SNAP_FACTOR |q| eta.
+SNAP_FACTOR = 4.0
+
+
+#: The reduced quadratic has fold structure if |q| exceeds this times the scale;
+#: below, q is rounding (a pitchfork, where q = 0 by symmetry, or worse).
+FOLD_CURVATURE = 1e-8
+
+
+def _is_fold(q, consts):
+    return abs(q) > FOLD_CURVATURE * max(abs(c) for c in consts)
+
+
+def _reduction(t1, t2, a1, b1, a2, b2, kcL1, kcL2):
+    """Lyapunov-Schmidt data at x: g, the SVD of J (left, sing, right) and q = u.D2g(v, v)."""
+    s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
+    s12 = s1 * c2 + c1 * s2
+    c12 = c1 * c2 - s1 * s2
+    g = np.array([a1 * s1 - b1 * c1 - kcL2 * s12, a2 * s2 - b2 * c2 - kcL1 * s12])
+    jac = np.array([[a1 * c1 + b1 * s1 - kcL2 * c12, -kcL2 * c12],
+                    [-kcL1 * c12, a2 * c2 + b2 * s2 - kcL1 * c12]])
+    left, sing, right = np.linalg.svd(jac)
+    v, u = right[1], left[:, 1]
+    d2g = np.array([(-a1 * s1 + b1 * c1) * v[0] ** 2 + kcL2 * s12 * (v[0] + v[1]) ** 2,
+                    (-a2 * s2 + b2 * c2) * v[1] ** 2 + kcL1 * s12 * (v[0] + v[1]) ** 2])
+    return g, left, sing, right, float(u @ d2g)
+
+
+def _along(t1, t2, h, left, sing, right, consts):
+    """x + h v, corrected in the stiff direction (right[0]), where Newton is safe."""
+    v, stiff, u0, big = right[1], right[0], left[:, 0], float(sing[0])
+    x1, x2 = t1 + h * v[0], t2 + h * v[1]
+    for _ in range(3):
+        r1, r2 = _residual(x1, x2, *consts)
+        step = (u0[0] * r1 + u0[1] * r2) / big
+        x1, x2 = x1 - step * stiff[0], x2 - step * stiff[1]
+    return float(x1), float(x2)
+
+
+def _fold_split(t1, t2, a1, b1, a2, b2, kcL1, kcL2):
+    """Roots near a near-singular point x (Lyapunov-Schmidt reduction).
+
+    With J = U diag(S) V^T at x, v = V[:, 1], u = U[:, 1], the equations along
+    x + s v reduce to u.g + S[1] s + q s^2 / 2 = 0 with q = u.D2g(v, v).
+    Returns ('roots', [two starting points]), ('ghost', [the closest approach])
+    when that quadratic has no real root, or ('none', []) when the reduction
+    does not apply (q = 0 or the predicted points are not close).
+    """
+    consts = (a1, b1, a2, b2, kcL1, kcL2)
+    g, left, sing, right, q = _reduction(t1, t2, *consts)
+    lin, ug = float(sing[1]), float(left[:, 1] @ g)
+    if not _is_fold(q, consts):
+        return 'none', []
+    disc = lin * lin - 2.0 * q * ug
+    if disc < 0.0:
+        kind, steps = 'ghost', [-lin / q]
+    else:
+        root = math.sqrt(disc)
+        kind, steps = 'roots', [(-lin + root) / q, (-lin - root) / q]
+    if max(abs(h) for h in steps) > FOLD_SPLIT_RADIUS:
+        return 'none', []
+    return kind, [_along(t1, t2, h, left, sing, right, consts) for h in steps]
+
+
+def _fold_partner(t1, t2, consts, scale):
+    """The other root of a fold pair next to a converged near-singular root, or None.
+
+    At a root u.g = 0, so the reduced quadratic S[1] s + q s^2 / 2 has its second
+    root at s = -2 S[1] / q.
+    """
+    if _sigma_min(t1, t2, *consts) > PARTNER_SEARCH * scale:      # the usual case, cheaply
+        return None
+    g, left, sing, right, q = _reduction(t1, t2, *consts)
+    lin = float(sing[1])
+    if not _is_fold(q, consts) or lin > PARTNER_SEARCH * scale:
+        return None
+    h = -2.0 * lin / q
+    if abs(h) > FOLD_SPLIT_RADIUS:
+        return None
+    w1, w2, r = _polish(*_along(t1, t2, h, left, sing, right, consts), *consts,
+                        tol=4e-16 * scale)
+    return (w1, w2, r) if r <= CONVERGED_TOL * scale else None
+
+
+def _snap_double_roots(kept, consts):
+    """Roots that are double roots within rounding, moved to where J is singular.
+
+    If sigma_min^2 <= 2 SNAP_FACTOR |q| eta (eta the rounding of g), the fold
+    pair through the point cannot be told apart from a double root: the point is
+    replaced by the vertex of the reduced quadratic, where the Hessian has a
+    (numerically) zero eigenvalue, so it is classified as degenerate instead of
+    as whichever side of the fold rounding put it on.  Pitchforks (q = 0 by
+    symmetry) are not affected.
+    """
+    scale = max(abs(c) for c in consts)
+    out, changed = [], False
+    for t1, t2, residual in kept:
+        if _sigma_min(t1, t2, *consts) > 1e-6 * scale:                # cannot qualify
+            out.append((t1, t2, residual))
+            continue
+        g, left, sing, right, q = _reduction(t1, t2, *consts)
+        lin = float(sing[1])
+        if _is_fold(q, consts) and lin * lin <= 2.0 * SNAP_FACTOR * abs(q) * ROUNDING_NOISE * scale:
+            h = -lin / q
+            if abs(h) <= FOLD_SPLIT_RADIUS:
+                x1, x2 = _along(t1, t2, h, left, sing, right, consts)
+                r = max(map(abs, _residual(x1, x2, *consts))) / scale
+                if r <= CONVERGED_TOL:
+                    out.append((_wrap_scalar(x1), _wrap_scalar(x2), r))
+                    changed = True
+                    continue
+        out.append((t1, t2, residual))
+    return _unique(out, consts) if changed else out
 
 
 def _wrap_scalar(angle):
     """Angle in [-pi, pi)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+    wrapped = (angle + math.pi) % (2.0 * math.pi) - math.pi
+    # (-tiny) % (2 pi) rounds to 2 pi: -pi - 4e-16 would come out as +pi
+    return wrapped - 2.0 * math.pi if wrapped >= math.pi else wrapped
 
 
-def _unique(found):
-    """Distinct solutions on the torus, the best-polished of each cluster, sorted."""
+def _horizontal_cosine(a1, a2, kcL1, kcL2):
+    """cos t1 of the non-flat equilibria when no vertical load acts (b1 = b2 = 0).
+
+    Then P(t1) = sin(t1)^2 R(t1) with R linear in cos t1, so the equilibria are
+    the four flat configurations and the pair t1 = +-acos(C); returns C (nan if
+    a1 a2 = 0: no non-flat equilibrium).
+    """
+    with np.errstate(divide='ignore', invalid='ignore'):
+        return np.divide(a1 * a1 * (a2 * a2 + kcL1 * kcL1) - kcL2 * kcL2 * a2 * a2,
+                         2.0 * a1 * a1 * a2 * kcL1)
+
+
+def _horizontal_load_first_angles(a1, a2, kcL1, kcL2):
+    """Every t1 of an equilibrium when b1 = b2 = 0, in closed form.
+
+    The polynomial has double roots at t1 = 0 and pi there (the flat
+    configurations share them), which merge with the non-flat pair on the
+    boundary lines: root finding cannot separate them, the closed form can.
+    """
+    angles = [0.0, math.pi]
+    cosine = float(_horizontal_cosine(a1, a2, kcL1, kcL2))
+    if abs(cosine) < 1.0:
+        t1 = math.acos(cosine)
+        angles += [t1, -t1]
+    return angles
+
+
+def _sigma_min(t1, t2, a1, b1, a2, b2, kcL1, kcL2):
+    """Smallest singular value of the Jacobian of (g1, g2) at (t1, t2), in closed form."""
+    s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
+    c12 = c1 * c2 - s1 * s2
+    j11 = a1 * c1 + b1 * s1 - kcL2 * c12
+    j22 = a2 * c2 + b2 * s2 - kcL1 * c12
+    j12, j21 = -kcL2 * c12, -kcL1 * c12
+    det = abs(j11 * j22 - j12 * j21)
+    frob2 = j11 * j11 + j22 * j22 + j12 * j12 + j21 * j21
+    # sigma_max^2 + sigma_min^2 = frob2 and sigma_max sigma_min = det
+    sigma_max = math.sqrt(0.5 * (frob2 + math.sqrt(max(frob2 * frob2 - 4.0 * det * det, 0.0))))
+    return det / sigma_max if sigma_max > 0.0 else 0.0
+
+
+def _error_bound(t1, t2, residual, a1, b1, a2, b2, kcL1, kcL2):
+    """(residual + rounding) / sigma_min of the scaled Jacobian: how far the true root may be."""
+    scale = max(abs(a1), abs(b1), abs(a2), abs(b2), abs(kcL1), abs(kcL2))
+    sigma_min = _sigma_min(t1, t2, a1, b1, a2, b2, kcL1, kcL2) / scale
+    if sigma_min == 0.0:
+        return math.inf
+    return (residual + ROUNDING_NOISE) / sigma_min
+
+
+def _same_root(distance, bound_a, bound_b):
+    """Two polished solutions are one root: closer than their error bounds allow.
+
+    Not a fixed DUPLICATE_TOL: two genuine equilibria of a fold pair can be
+    well resolved (residuals at rounding level, error bounds 1e-8) and yet only
+    8e-8 rad apart; merging them would leave one of a min/saddle pair.
+    """
+    return distance <= max(IDENTICAL_TOL,
+                           min(CLUSTER_RADIUS, CLUSTER_FACTOR * max(bound_a, bound_b)))
+
+
+def _torus_distance(a, b):
+    """Max-norm distance of two (t1, t2, ...) tuples on the torus."""
     two_pi = 2.0 * math.pi
+    d1, d2 = abs(a[0] - b[0]) % two_pi, abs(a[1] - b[1]) % two_pi
+    return max(min(d1, two_pi - d1), min(d2, two_pi - d2))
+
+
+def _unique(found, consts=None):
+    """Distinct solutions on the torus, the best-polished of each cluster, sorted.
+
+    Without ``consts`` (the reduced coefficients) solutions within DUPLICATE_TOL
+    are one.  With them, only identical solutions (IDENTICAL_TOL) are merged
+    first; then, where solutions crowd together, those within each other's
+    error bounds (:func:`_merge_clusters`): near a multiple root they are one
+    root smeared by rounding, while two well-resolved roots of a fold pair
+    stay two however close they are.
+    """
+    distance = _torus_distance
+    same = DUPLICATE_TOL if consts is None else IDENTICAL_TOL
     kept = []
     for candidate in sorted(found, key=lambda c: c[2]):
-        t1, t2 = candidate[0], candidate[1]
-        for k in kept:
-            d1, d2 = abs(t1 - k[0]), abs(t2 - k[1])
-            if min(d1, two_pi - d1) <= DUPLICATE_TOL and min(d2, two_pi - d2) <= DUPLICATE_TOL:
-                break
-        else:
+        if all(distance(candidate, k) > same for k in kept):
             kept.append(candidate)
+    if consts is not None and any(distance(a, b) <= CLUSTER_RADIUS
+                                  for i, a in enumerate(kept) for b in kept[:i]):
+        kept = _merge_clusters(kept, consts, distance)
     kept.sort()
     return kept
+
+
+def _merge_clusters(kept, consts, distance):
+    """Merge solutions within each other's error bounds (see :func:`_unique`).
+
+    Clusters grow around their most degenerate member (the largest error
+    bound, the one nearest the multiple root); each is represented by the
+    member nearest its centroid, so that a symmetric cluster (a flat
+    configuration and the mirrored pair 3e-8 rad from it) keeps its centre, or,
+    for a merged fold pair, by the vertex of the fold.
+    """
+    bounds = [_error_bound(k[0], k[1], k[2], *consts) for k in kept]
+    clusters = []
+    for i in sorted(range(len(kept)), key=lambda i: -bounds[i]):
+        for members in clusters:
+            leader = members[0]
+            if _same_root(distance(kept[i], kept[leader]), bounds[i], bounds[leader]):
+                members.append(i)
+                break
+        else:
+            clusters.append([i])
+    out = []
+    for members in clusters:
+        if len(members) == 1:
+            out.append(kept[members[0]])
+            continue
+        base = kept[members[0]]
+        offsets = np.array([[_wrap_scalar(kept[m][0] - base[0]),
+                             _wrap_scalar(kept[m][1] - base[1])] for m in members])
+        centre = offsets.mean(axis=0)
+        spread = float(np.max(np.abs(offsets - centre)))
+        nearest = kept[members[int(np.argmin(np.max(np.abs(offsets - centre), axis=1)))]]
+        # Two roots merged around a fold: a double root, which sits where the
+        # Jacobian is singular (the vertex of the reduced quadratic), so that it
+        # is classified by a vanishing eigenvalue rather than by whichever side
+        # of the fold one of the merged points happened to be on.
+        kind, points = _fold_split(base[0] + centre[0], base[1] + centre[1], *consts)
+        if kind != 'none':
+            vertex = np.mean(points, axis=0)
+            r1, r2 = _residual(vertex[0], vertex[1], *consts)
+            scale = max(abs(c) for c in consts)
+            residual = max(abs(r1), abs(r2)) / scale
+            if (_torus_distance(vertex, (base[0] + centre[0], base[1] + centre[1])) <= spread
+                    and residual <= CONVERGED_TOL):
+                out.append((_wrap_scalar(float(vertex[0])), _wrap_scalar(float(vertex[1])),
+                            residual))
+                continue
+        out.append(nearest)
+    return out
 
 
 def _build(p, found):
@@ -373,44 +736,83 @@ def equilibria_batch(rho, L1=1.0, L2=1.0, ka=100.0, kb=100.0, kc=100.0,
     scale = _scale(*consts)
     laurent = _polynomial(*consts)                                # (n, 7), z^3 .. z^-3
     continuum = np.max(np.abs(laurent), axis=-1) <= CONTINUUM_TOL * scale ** 4
-    t1 = _batch_circle_roots(laurent, continuum)                  # (n, 6), nan if off circle
+    t1, near_circle = _batch_circle_roots(laurent, continuum)     # (n, 6), nan if off circle
+    horizontal = (consts[1] == 0.0) & (consts[3] == 0.0) & ~continuum
+    if np.any(horizontal):                     # no vertical load: closed form, see equilibria()
+        t1[horizontal] = _batch_horizontal_first_angles(
+            *(c[horizontal] for c in (consts[0], consts[2], consts[4], consts[5])))
 
     cols = [c[:, None] for c in consts]
-    t1, t2, g2 = _batch_candidates(t1, *cols)                     # (n, 12)
+    t1, t2, g2 = _batch_candidates(t1, *cols)                     # (n, 24)
     rows, slots = np.nonzero(np.abs(g2) <= CANDIDATE_TOL * scale[:, None])   # nan -> False
     c = [x[rows] for x in consts]
-    s1, s2 = _newton(t1[rows, slots], t2[rows, slots], *c)
+    start1, start2 = t1[rows, slots], t2[rows, slots]
+    s1, s2 = _newton(start1, start2, *c)
     g1, g2 = _residual(s1, s2, *c)
     residual = np.maximum(np.abs(g1), np.abs(g2)) / scale[rows]
-    keep = residual <= RESIDUAL_TOL
-    rows, slots = rows[keep], slots[keep]
+    # Rows with anything delicate (a candidate that did not converge, solutions
+    # crowding together, a nearly singular equilibrium, an odd count) are solved
+    # again by the scalar path, which is the reference: the batch is a fast path
+    # for the generic rows, not a second algorithm for the degenerate ones.
+    hard = near_circle.copy()           # a root just off the circle: a pair about to merge
+    hard[rows[~(residual <= CONVERGED_TOL)]] = True
+    keep = residual <= CONVERGED_TOL
+    rows, s1, s2, residual = rows[keep], s1[keep], s2[keep], residual[keep]
+    order = np.argsort(rows, kind='stable')
+    rows, s1, s2, residual = rows[order], s1[order], s2[order], residual[order]
+    counts = np.bincount(rows, minlength=n)
+    slots = np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    width = max(6, int(counts.max(initial=0)))
 
-    theta = np.full((n, 12, 2), np.nan)
-    res = np.full((n, 12), np.inf)
-    theta[rows, slots, 0] = _wrap(s1[keep])
-    theta[rows, slots, 1] = _wrap(s2[keep])
-    res[rows, slots] = residual[keep]
-    theta, res = _compact(theta, res, np.isfinite(res),
-                          max(1, int(np.isfinite(res).sum(axis=1).max(initial=0))))
-    valid = _batch_unique(theta, res)
-    if theta.shape[1] < 6:
-        pad = 6 - theta.shape[1]
-        theta = np.concatenate([theta, np.full((n, pad, 2), np.nan)], axis=1)
-        res = np.concatenate([res, np.full((n, pad), np.inf)], axis=1)
-        valid = np.concatenate([valid, np.zeros((n, pad), dtype=bool)], axis=1)
+    theta = np.full((n, width, 2), np.nan)
+    res = np.full((n, width), np.inf)
+    theta[rows, slots, 0] = _wrap(s1)
+    theta[rows, slots, 1] = _wrap(s2)
+    res[rows, slots] = residual
+    theta, res = _compact(theta, res, np.isfinite(res), width)
+    valid, crowded = _batch_unique(theta, res)
+    hard |= crowded
+    hard |= valid.sum(axis=1) > 6
     theta, res = _compact(theta, res, valid, 6)
     valid = np.isfinite(res)
     valid[continuum] = False
     eigenvalues = _batch_eigenvalues(theta, valid, cols, v['L1'], v['L2'])
+    ev_scale = np.max(np.abs(eigenvalues), axis=-1)
+    hard |= (valid & (np.min(np.abs(eigenvalues), axis=-1) <= HARD_TOL * ev_scale)).any(axis=1)
+    hard |= valid.sum(axis=1) % 2 == 1
+    hard &= ~continuum
+    if np.any(hard):
+        index = np.nonzero(hard)[0]
+        theta[index], valid[index] = np.nan, False
+        for row in index.tolist():
+            found = _solve_scalar(tuple(float(c[row]) for c in consts))
+            continuum[row] = found is None
+            for j, (u1, u2, _) in enumerate((found or ())[:6]):
+                theta[row, j] = (u1, u2)
+                valid[row, j] = True
+        eigenvalues[index] = _batch_eigenvalues(theta[index], valid[index],
+                                                [c[index] for c in cols],
+                                                v['L1'][index], v['L2'][index])
     return EquilibriumBatch(theta=theta, eigenvalues=eigenvalues, valid=valid,
                             continuum=continuum)
 
 
-def _batch_candidates(t1, a1, b1, a2, b2, kcL1, kcL2):
-    """Both t2 of g1 = 0 for each t1, and g2 there; no trigonometry beyond t1's.
+#: Rows with an equilibrium whose |lambda_min| is below this times |lambda_max|
+#: are solved by the scalar path.
+HARD_TOL = 1e-5
 
-    With sin(t1 + t2) = r / (kc L2) =: sin(phi), the candidates are t2 = phi - t1
-    and t2 = pi - phi - t1, and sin(t1 + t2) is the same for both.
+
+def _batch_candidates(t1, a1, b1, a2, b2, kcL1, kcL2):
+    """Candidate t2 for each t1, and the residual of the other equation there.
+
+    From g1 = 0: with sin(t1 + t2) = r / (kc L2) =: sin(phi), t2 = phi - t1 and
+    t2 = pi - phi - t1 (checked by g2).  From g2 = 0, (cos t2, sin t2) is
+    parallel to (a2 - kc L1 cos t1, b2 + kc L1 sin t1): t2 = psi, psi + pi
+    (checked by g1), kept only where no g1 candidate close to it passed.  The
+    g1 route is ill-conditioned when the loads dwarf kc L2 (a small error in
+    t1 becomes a large one in phi); the g2 route then is not, and conversely.
+    Returns (t1, t2, check), each (n, 4 * width); ``check`` is nan for
+    suppressed candidates.
     """
     s1, c1 = np.sin(t1), np.cos(t1)
     sphi = np.clip((a1 * s1 - b1 * c1) / kcL2, -1.0, 1.0)
@@ -420,9 +822,30 @@ def _batch_candidates(t1, a1, b1, a2, b2, kcL1, kcL2):
     s2b, c2b = sphi * c1 + cphi * s1, sphi * s1 - cphi * c1
     g2a = a2 * s2a - b2 * c2a - kcL1 * sphi
     g2b = a2 * s2b - b2 * c2b - kcL1 * sphi
-    return (np.concatenate([t1, t1], axis=1),
-            np.concatenate([phi - t1, np.pi - phi - t1], axis=1),
-            np.concatenate([g2a, g2b], axis=1))
+    x, y = a2 - kcL1 * c1, b2 + kcL1 * s1
+    psi = np.arctan2(y, x)
+    norm = np.hypot(x, y)
+    safe = np.where(norm > 0.0, norm, 1.0)
+    cpsi, spsi = np.where(norm > 0.0, x / safe, 1.0), np.where(norm > 0.0, y / safe, 0.0)
+    s12 = s1 * cpsi + c1 * spsi                       # sin(t1 + psi)
+    r = a1 * s1 - b1 * c1
+    g1c, g1d = r - kcL2 * s12, r + kcL2 * s12
+    scale = np.maximum.reduce([np.abs(a1), np.abs(b1), np.abs(a2), np.abs(b2),
+                               np.abs(kcL1), np.abs(kcL2)])
+    tol = CANDIDATE_TOL * scale
+    t2a, t2b, t2c, t2d = phi - t1, np.pi - phi - t1, psi, psi + np.pi
+
+    def near(c, s, cx, sx):                           # chord length of the two angles
+        return (c - cx) ** 2 + (s - sx) ** 2 <= SECOND_ROUTE_SEPARATION ** 2
+
+    passed_a, passed_b = np.abs(g2a) <= tol, np.abs(g2b) <= tol
+    for sign, g1x in ((1.0, g1c), (-1.0, g1d)):
+        cx, sx = sign * cpsi, sign * spsi
+        redundant = ((passed_a & near(c2a, s2a, cx, sx)) | (passed_b & near(c2b, s2b, cx, sx)))
+        g1x[redundant] = np.nan
+    return (np.concatenate([t1, t1, t1, t1], axis=1),
+            np.concatenate([t2a, t2b, t2c, t2d], axis=1),
+            np.concatenate([g2a, g2b, g1c, g1d], axis=1))
 
 
 #: Offset of the tan-half variable of the batch solver (rad); any value off the
@@ -447,8 +870,14 @@ _TAN_HALF_BASIS = _tan_half_basis()
 _ROTATION = np.exp(1j * PHI0 * np.arange(3, -4, -1))
 
 
+#: A unit-circle root with | ln|z| | above this is a pair of roots about to
+#: merge (or just merged into a complex pair): the row goes to the scalar path.
+NEAR_CIRCLE = 1e-9
+
+
 def _batch_circle_roots(laurent, continuum):
-    """t1 of the unit-circle roots of many polynomials, (n, 6), nan elsewhere."""
+    """t1 of the unit-circle roots of many polynomials, (n, 6), nan elsewhere,
+    and which rows have a root near but not on the circle."""
     real = ((laurent * _ROTATION) @ _TAN_HALF_BASIS.T).real     # (n, 7) in w
     peak = np.max(np.abs(real), axis=-1, keepdims=True)
     peak[peak == 0.0] = 1.0
@@ -467,11 +896,21 @@ def _batch_circle_roots(laurent, continuum):
     on_circle = np.abs(np.log(np.where(modulus > 0, modulus, 1e-300))) < UNIT_CIRCLE_TOL
     on_circle |= ~np.isfinite(modulus) & np.isinf(np.abs(w))
     t1 = PHI0 + np.where(np.isfinite(modulus), np.angle(z), np.pi)
-    return np.where(on_circle, t1, np.nan)
+    off = np.abs(np.log(np.where(modulus > 0, modulus, 1e-300)))
+    near = (on_circle & (off > NEAR_CIRCLE)).any(axis=1)
+    return np.where(on_circle, t1, np.nan), near
 
 
 def _batch_arrays(**values):
-    arrays = np.broadcast_arrays(*[np.asarray(v, dtype=float) for v in values.values()])
+    converted = []
+    for name, v in values.items():
+        try:
+            if isinstance(v, (str, bytes)):
+                raise TypeError('text is not a number')
+            converted.append(np.asarray(v, dtype=float))
+        except (TypeError, ValueError) as error:
+            raise InvalidParameterError(f'{name} must be real numbers: {error}') from None
+    arrays = np.broadcast_arrays(*converted)
     out = {}
     for (name, _), arr in zip(values.items(), arrays):
         arr = arr.ravel()
@@ -497,19 +936,37 @@ def _compact(theta, residual, keep, width):
     return theta, residual
 
 
+def _batch_horizontal_first_angles(a1, a2, kcL1, kcL2):
+    """:func:`_horizontal_load_first_angles` for many points, (m, 6), nan-padded."""
+    cosine = _horizontal_cosine(a1, a2, kcL1, kcL2)
+    inside = np.abs(cosine) < 1.0
+    t1 = np.where(inside, np.arccos(np.where(inside, cosine, 0.0)), np.nan)
+    out = np.full((a1.size, 6), np.nan)
+    out[:, 0], out[:, 1], out[:, 2], out[:, 3] = 0.0, np.pi, t1, -t1
+    return out
+
+
 def _batch_unique(theta, residual):
-    """Mask of the distinct solutions per row; slots are sorted by residual already."""
+    """(mask of the distinct solutions per row, rows where solutions crowd together).
+
+    Slots are sorted by residual already; identical solutions (IDENTICAL_TOL)
+    keep the first.  Rows with two solutions within CROWDED_RADIUS need the
+    cluster analysis of :func:`_unique` (the scalar path).
+    """
     finite = np.isfinite(residual)
     keep = finite.copy()
+    crowded = np.zeros(theta.shape[0], dtype=bool)
     two_pi = 2.0 * np.pi
     for j in range(1, theta.shape[1]):
         rows = np.nonzero(finite[:, j])[0]
         d1 = np.abs(theta[rows, :j, 0] - theta[rows, j, None, 0])
         d2 = np.abs(theta[rows, :j, 1] - theta[rows, j, None, 1])
-        close = ((np.minimum(d1, two_pi - d1) <= DUPLICATE_TOL)
-                 & (np.minimum(d2, two_pi - d2) <= DUPLICATE_TOL) & keep[rows, :j])
-        keep[rows[close.any(axis=1)], j] = False
-    return keep
+        distance = np.maximum(np.minimum(d1, two_pi - d1), np.minimum(d2, two_pi - d2))
+        earlier = keep[rows, :j]
+        keep[rows[((distance <= IDENTICAL_TOL) & earlier).any(axis=1)], j] = False
+        crowded[rows[((distance <= CROWDED_RADIUS) & (distance > IDENTICAL_TOL)
+                      & earlier).any(axis=1)]] = True
+    return keep, crowded
 
 
 def _newton(t1, t2, a1, b1, a2, b2, kcL1, kcL2):
@@ -517,11 +974,15 @@ def _newton(t1, t2, a1, b1, a2, b2, kcL1, kcL2):
     t1, t2 = t1.copy(), t2.copy()
     active = np.arange(t1.size)
     consts = (a1, b1, a2, b2, kcL1, kcL2)
+    # as in _polish: a point already at rounding level stays (near a multiple
+    # root a Newton step from there only amplifies the rounding)
+    tolerance = 4e-16 * np.broadcast_to(np.maximum.reduce([np.abs(c) for c in consts]), t1.shape)
     for _ in range(NEWTON_MAX_ITER):
         if active.size == 0:
             break
         u1, u2 = t1[active], t2[active]
         a1, b1, a2, b2, kcL1, kcL2 = (np.broadcast_to(c, t1.shape)[active] for c in consts)
+        tol = tolerance[active]
         s1, c1, s2, c2 = np.sin(u1), np.cos(u1), np.sin(u2), np.cos(u2)
         s12 = s1 * c2 + c1 * s2
         c12 = c1 * c2 - s1 * s2
@@ -530,7 +991,7 @@ def _newton(t1, t2, a1, b1, a2, b2, kcL1, kcL2):
         j11 = a1 * c1 + b1 * s1 - kcL2 * c12
         j22 = a2 * c2 + b2 * s2 - kcL1 * c12
         det = j11 * j22 - kcL1 * kcL2 * c12 * c12
-        ok = det != 0.0
+        ok = (det != 0.0) & (np.maximum(np.abs(g1), np.abs(g2)) > tol)
         det = np.where(ok, det, 1.0)
         d1 = np.where(ok, (j22 * g1 + kcL2 * c12 * g2) / det, 0.0)
         d2 = np.where(ok, (j11 * g2 + kcL1 * c12 * g1) / det, 0.0)

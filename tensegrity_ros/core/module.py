@@ -55,6 +55,8 @@ class ModuleParams:
         for f in fields(self):
             value = getattr(self, f.name)
             try:
+                if isinstance(value, (str, bytes, bytearray)):
+                    raise TypeError('text is not a number')    # float('1.5') would accept it
                 value = float(value)
             except (TypeError, ValueError):
                 raise InvalidParameterError(
@@ -111,6 +113,14 @@ def _angles(theta):
     return theta[..., 0], theta[..., 1]
 
 
+def _single_angles(theta):
+    """(t1, t2) as floats from one angle pair of shape (2,)."""
+    theta = np.asarray(theta, dtype=float)
+    if theta.shape != (2,):
+        raise ValueError(f'theta must have shape (2,), got {theta.shape}')
+    return float(theta[0]), float(theta[1])
+
+
 def node_positions(p: ModuleParams, theta):
     """Positions of A1..A4 as an array of shape (..., 4, 2)."""
     t1, t2 = _angles(theta)
@@ -162,7 +172,8 @@ def hessian(p: ModuleParams, theta):
 
 
 def actuator_force(p: ModuleParams, theta):
-    """dU/drho (N): the force the prismatic actuator must hold (positive = pulls A2 in)."""
+    """dU/drho (N): the force the prismatic actuator must exert on A2 along +x to hold rho
+    (positive = pushes A2 outward; unloaded at rho = 0.75 it is -75 N: the actuator pulls)."""
     t1, t2 = _angles(theta)
     x3 = p.L1 * np.cos(t1)
     l2c = p.L2 * np.cos(t2)
@@ -172,7 +183,7 @@ def actuator_force(p: ModuleParams, theta):
 
 def parameter_gradient(p: ModuleParams, theta):
     """dU/dp at fixed theta, in ``PARAMETER_NAMES`` order (envelope theorem input)."""
-    t1, t2 = (float(v) for v in np.asarray(theta, dtype=float))
+    t1, t2 = _single_angles(theta)
     c1, s1, c2, s2 = math.cos(t1), math.sin(t1), math.cos(t2), math.sin(t2)
     x3, y3 = p.L1 * c1, p.L1 * s1
     x4, y4 = p.rho - p.L2 * c2, p.L2 * s2
@@ -192,7 +203,7 @@ def parameter_gradient(p: ModuleParams, theta):
 
 def gradient_parameter_jacobian(p: ModuleParams, theta):
     """d(dU/dtheta)/dp, shape (2, len(PARAMETER_NAMES)): how the equilibrium equations move."""
-    t1, t2 = (float(v) for v in np.asarray(theta, dtype=float))
+    t1, t2 = _single_angles(theta)
     s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
     s12 = math.sin(t1 + t2)
     inner1 = (p.ka + p.kc) * p.rho * s1 - p.kc * p.L2 * s12 + p.f3x * s1 - p.f3y_total * c1

@@ -332,3 +332,33 @@ def test_near_fold_with_unresolved_polynomial_roots():
         s = equilibria(p)
         check_invariants(p, s)
         assert s.num_stable <= 2
+
+
+def test_batch_blocks_join_seamlessly():
+    """A batch larger than one block gives exactly what block-sized calls give."""
+    from tensegrity_ros.core import equilibria as eq_module
+    from tensegrity_ros.core.equilibria import BATCH_BLOCK, equilibria_batch
+    rng = np.random.default_rng(5)
+    n = 2 * BATCH_BLOCK + 17
+    args = dict(rho=rng.uniform(0.05, 2, n), f3y=rng.uniform(-10, 10, n), f4y=rng.uniform(-10, 10, n))
+    whole = equilibria_batch(**args)
+    assert whole.theta.shape == (n, 6, 2)
+    for start in (0, BATCH_BLOCK - 3, n - 20):
+        part = equilibria_batch(**{k: a[start:start + 20] for k, a in args.items()})
+        assert np.array_equal(part.valid, whole.valid[start:start + 20])
+        assert np.array_equal(part.num_stable, whole.num_stable[start:start + 20])
+        assert np.allclose(part.theta[part.valid], whole.theta[start:start + 20][part.valid])
+
+
+def test_one_root_polished_twice_is_reported_once():
+    """Found by hypothesis (mirror symmetry): a well-conditioned maximum reached from two
+    candidates 1.8e-10 rad apart was listed twice, breaking Poincare-Hopf."""
+    p = ModuleParams(rho=0.8045771465889175, L1=2.8359375, L2=1.75, ka=860.0, kb=20.48828125,
+                     kc=1.1, f3y=-152.0, f4x=20.486328125)
+    found = equilibria(p)
+    kinds = [e.kind for e in found]
+    assert len(found) == 4
+    assert kinds.count('minimum') + kinds.count('maximum') == kinds.count('saddle')
+    mirrored = equilibria(p.with_(f3y=152.0))
+    assert sorted(np.round([e.theta1 for e in found], 9)) == \
+        sorted(np.round([-e.theta1 for e in mirrored], 9))

@@ -590,13 +590,46 @@ def _unique(found, consts=None):
     same = DUPLICATE_TOL if consts is None else IDENTICAL_TOL
     kept = []
     for candidate in sorted(found, key=lambda c: c[2]):
-        if all(distance(candidate, k) > same for k in kept):
+        if all(distance(candidate, k) > same for k in kept) and (
+                consts is None or not any(_same_type_duplicate(candidate, k, consts, distance)
+                                          for k in kept)):
             kept.append(candidate)
     if consts is not None and any(distance(a, b) <= CLUSTER_RADIUS
                                   for i, a in enumerate(kept) for b in kept[:i]):
         kept = _merge_clusters(kept, consts, distance)
     kept.sort()
     return kept
+
+
+def _inertia(t1, t2, a1, b1, a2, b2, kcL1, kcL2):
+    """(sign det, sign of the first diagonal entry) of the Jacobian of (g1, g2): the
+    Morse type, since that Jacobian is diag(1/L1, 1/L2) times the Hessian."""
+    s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
+    c12 = c1 * c2 - s1 * s2
+    j11 = a1 * c1 + b1 * s1 - kcL2 * c12
+    j22 = a2 * c2 + b2 * s2 - kcL1 * c12
+    det = j11 * j22 - kcL1 * kcL2 * c12 * c12
+    size = max(abs(j11), abs(j22), abs(kcL1 * c12), abs(kcL2 * c12)) ** 2
+    if not abs(det) > NONDEGENERATE_TOL * size:
+        return 0, 0                                    # degenerate: no definite type
+    return (det > 0) - (det < 0), (j11 > 0) - (j11 < 0)
+
+
+#: |det J| above this fraction of its entries squared gives a definite Morse type.
+NONDEGENERATE_TOL = 1e-6
+
+
+def _same_type_duplicate(a, b, consts, distance):
+    """Two solutions within DUPLICATE_TOL of the same Morse type are one root.
+
+    Two distinct non-degenerate equilibria that close can only be the two sides
+    of a fold (opposite index: a minimum and a saddle, or a saddle and a
+    maximum), which must stay two; same-type points are one root polished twice.
+    """
+    if distance(a, b) > DUPLICATE_TOL:
+        return False
+    inertia_a, inertia_b = _inertia(a[0], a[1], *consts), _inertia(b[0], b[1], *consts)
+    return inertia_a == inertia_b and inertia_a[0] != 0
 
 
 def _merge_clusters(kept, consts, distance):
@@ -728,6 +761,24 @@ def equilibria_batch(rho, L1=1.0, L2=1.0, ka=100.0, kb=100.0, kc=100.0,
     """
     v = _batch_arrays(rho=rho, L1=L1, L2=L2, ka=ka, kb=kb, kc=kc, f3x=f3x, f3y=f3y,
                       f4x=f4x, f4y=f4y, m1=m1, m2=m2)
+    n = v['rho'].size
+    if n <= BATCH_BLOCK:
+        return _batch_block(v, g)
+    # Blocks that stay in cache are much faster than one huge set of temporaries.
+    blocks = [_batch_block({k: a[i:i + BATCH_BLOCK] for k, a in v.items()}, g)
+              for i in range(0, n, BATCH_BLOCK)]
+    return EquilibriumBatch(theta=np.concatenate([b.theta for b in blocks]),
+                            eigenvalues=np.concatenate([b.eigenvalues for b in blocks]),
+                            valid=np.concatenate([b.valid for b in blocks]),
+                            continuum=np.concatenate([b.continuum for b in blocks]))
+
+
+#: Rows per block of :func:`equilibria_batch` (temporaries of a block fit in cache).
+BATCH_BLOCK = 8192
+
+
+def _batch_block(v, g):
+    """:func:`equilibria_batch` on validated, flattened parameter arrays."""
     f3y_total = v['f3y'] - 0.5 * v['m1'] * g
     f4y_total = v['f4y'] - 0.5 * v['m2'] * g
     consts = _reduced_coefficients(v['rho'], v['L1'], v['L2'], v['ka'], v['kb'], v['kc'],

@@ -586,17 +586,26 @@ def _unique(found, consts=None):
     root smeared by rounding, while two well-resolved roots of a fold pair
     stay two however close they are.
     """
-    distance = _torus_distance
+    two_pi = 2.0 * math.pi
     same = DUPLICATE_TOL if consts is None else IDENTICAL_TOL
     kept = []
+    crowded = False                      # two kept solutions within CLUSTER_RADIUS
     for candidate in sorted(found, key=lambda c: c[2]):
-        if all(distance(candidate, k) > same for k in kept) and (
-                consts is None or not any(_same_type_duplicate(candidate, k, consts, distance)
-                                          for k in kept)):
+        t1, t2 = candidate[0], candidate[1]
+        duplicate = near = False
+        for k in kept:                   # one torus distance per pair (the hot loop)
+            d1, d2 = abs(t1 - k[0]), abs(t2 - k[1])
+            d = max(min(d1, two_pi - d1), min(d2, two_pi - d2))
+            if d <= same or (consts is not None and d <= DUPLICATE_TOL
+                             and _same_type_duplicate(candidate, k, consts)):
+                duplicate = True
+                break
+            near = near or d <= CLUSTER_RADIUS
+        if not duplicate:
             kept.append(candidate)
-    if consts is not None and any(distance(a, b) <= CLUSTER_RADIUS
-                                  for i, a in enumerate(kept) for b in kept[:i]):
-        kept = _merge_clusters(kept, consts, distance)
+            crowded = crowded or near
+    if consts is not None and crowded:
+        kept = _merge_clusters(kept, consts, _torus_distance)
     kept.sort()
     return kept
 
@@ -619,15 +628,13 @@ def _inertia(t1, t2, a1, b1, a2, b2, kcL1, kcL2):
 NONDEGENERATE_TOL = 1e-6
 
 
-def _same_type_duplicate(a, b, consts, distance):
-    """Two solutions within DUPLICATE_TOL of the same Morse type are one root.
+def _same_type_duplicate(a, b, consts):
+    """Two solutions within DUPLICATE_TOL (the caller checks) of the same Morse type are one root.
 
     Two distinct non-degenerate equilibria that close can only be the two sides
     of a fold (opposite index: a minimum and a saddle, or a saddle and a
     maximum), which must stay two; same-type points are one root polished twice.
     """
-    if distance(a, b) > DUPLICATE_TOL:
-        return False
     inertia_a, inertia_b = _inertia(a[0], a[1], *consts), _inertia(b[0], b[1], *consts)
     return inertia_a == inertia_b and inertia_a[0] != 0
 

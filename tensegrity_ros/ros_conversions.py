@@ -152,51 +152,14 @@ def equilibrium_status(*, name, hardware_id, module, params, eq, level, message,
     return status
 
 
-def jump_status(*, name, hardware_id, module, jump, cause, index):
-    """One ``jumps`` message: a fold or branch point crossed, and where the module landed."""
-    rho = float(jump.params.rho)
-    f1, f2 = (float(v) for v in jump.from_theta)
-    t1, t2 = (float(v) for v in jump.to_theta)
-    message = (f'{jump.kind} at rho={rho:.6g}: theta ({f1:.4f}, {f2:.4f}) -> '
-               f'({t1:.4f}, {t2:.4f}) rad')
-    if jump.ambiguous:
-        message += ' (ambiguous landing)'
-    status = DiagnosticStatus(level=WARN, name=name, message=message,
-                              hardware_id=hardware_id)
-    status.values = key_values((
-        ('module', module),
-        ('kind', jump.kind),
-        ('rho', rho),
-        ('from_theta1', f1),
-        ('from_theta2', f2),
-        ('to_theta1', t1),
-        ('to_theta2', t2),
-        ('s', float(jump.s)),
-        ('ambiguous', bool(jump.ambiguous)),
-        ('f3x', jump.params.f3x),
-        ('f3y', jump.params.f3y),
-        ('f4x', jump.params.f4x),
-        ('f4y', jump.params.f4y),
-        ('cause', cause),
-        ('index', index),
-    ))
-    return status
-
-
-def stack_jump_status(*, name, hardware_id, modules, index, jump, cause, count):
-    """One ``jumps`` message of a stack (N >= 2): a fold or branch point of the whole stack.
-
-    ``modules``: every module's name, bottom to top; ``index``: the module whose command
-    triggered the path.  ``rho``, ``from_theta1/2``, ``to_theta1/2`` and the forces are
-    that module's; ``from_<m>_theta1`` ... ``to_<m>_theta2`` give every module's angles
-    before (critical configuration) and after (landing).
-    """
-    params = jump.stack.modules[index]
+def _jump_message(*, name, hardware_id, jump, params, module, from_theta, to_theta, cause,
+                  index, where, label):
+    """The ``jumps`` DiagnosticStatus common to one module and a stack: the module's kind,
+    rho, angles before and after, path parameter, forces, cause and running index."""
     rho = float(params.rho)
-    f1, f2 = (float(v) for v in jump.from_theta[index])
-    t1, t2 = (float(v) for v in jump.to_theta[index])
-    module = modules[index]
-    message = (f'{jump.kind} of the stack at {module} rho={rho:.6g}: {module} theta '
+    f1, f2 = (float(v) for v in from_theta)
+    t1, t2 = (float(v) for v in to_theta)
+    message = (f'{jump.kind}{where} rho={rho:.6g}: {label}theta '
                f'({f1:.4f}, {f2:.4f}) -> ({t1:.4f}, {t2:.4f}) rad')
     if jump.ambiguous:
         message += ' (ambiguous landing)'
@@ -217,8 +180,35 @@ def stack_jump_status(*, name, hardware_id, modules, index, jump, cause, count):
         ('f4x', params.f4x),
         ('f4y', params.f4y),
         ('cause', cause),
-        ('index', count),
+        ('index', index),
     ]
+    return status, pairs
+
+
+def jump_status(*, name, hardware_id, module, jump, cause, index):
+    """One ``jumps`` message: a fold or branch point crossed, and where the module landed."""
+    status, pairs = _jump_message(name=name, hardware_id=hardware_id, jump=jump,
+                                  params=jump.params, module=module,
+                                  from_theta=jump.from_theta, to_theta=jump.to_theta,
+                                  cause=cause, index=index, where=' at', label='')
+    status.values = key_values(pairs)
+    return status
+
+
+def stack_jump_status(*, name, hardware_id, modules, index, jump, cause, count):
+    """One ``jumps`` message of a stack (N >= 2): a fold or branch point of the whole stack.
+
+    ``modules``: every module's name, bottom to top; ``index``: the module whose command
+    triggered the path.  ``rho``, ``from_theta1/2``, ``to_theta1/2`` and the forces are
+    that module's; ``from_<m>_theta1`` ... ``to_<m>_theta2`` give every module's angles
+    before (critical configuration) and after (landing).
+    """
+    module = modules[index]
+    status, pairs = _jump_message(name=name, hardware_id=hardware_id, jump=jump,
+                                  params=jump.stack.modules[index], module=module,
+                                  from_theta=jump.from_theta[index],
+                                  to_theta=jump.to_theta[index], cause=cause, index=count,
+                                  where=f' of the stack at {module}', label=f'{module} ')
     for i, m in enumerate(modules):
         pairs.append((f'{m}_rho', float(jump.stack.modules[i].rho)))
     for side, theta in (('from', jump.from_theta), ('to', jump.to_theta)):

@@ -917,17 +917,28 @@ def _mode(h11, h12, h22, lam):
     return (a / n, b / n) if n > 0 else (1.0, 0.0)
 
 
-def _branch_state(P, t1, t2):
-    """At an equilibrium: (lambda_min, lambda_max, mode, dtheta/drho, dlambda_min/drho)."""
+def _local_terms(P, t1, t2):
+    """(s1, c1, s2, c2, g1, g2, h11, h12, h22, k12) at (t1, t2) for raw parameters P:
+    the gradient, the Hessian and k12 = kc L1 L2 sin(t1 + t2) (their third-derivative
+    building block), shared by the branch and extended-system solvers."""
     rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = P
     a1 = (ka + kc) * rho + f3x
     a2 = (kb + kc) * rho - f4x
     s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
     s12 = s1 * c2 + c1 * s2
     c12 = c1 * c2 - s1 * s2
+    g1 = L1 * (a1 * s1 - kc * L2 * s12 - f3y * c1)
+    g2 = L2 * (a2 * s2 - kc * L1 * s12 - f4y * c2)
     h11 = L1 * (a1 * c1 - kc * L2 * c12 + f3y * s1)
     h22 = L2 * (a2 * c2 - kc * L1 * c12 + f4y * s2)
     h12 = -kc * L1 * L2 * c12
+    return s1, c1, s2, c2, g1, g2, h11, h12, h22, kc * L1 * L2 * s12
+
+
+def _branch_state(P, t1, t2):
+    """At an equilibrium: (lambda_min, lambda_max, mode, dtheta/drho, dlambda_min/drho)."""
+    rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = P
+    s1, c1, s2, c2, _, _, h11, h12, h22, k12 = _local_terms(P, t1, t2)
     g1r, g2r = L1 * (ka + kc) * s1, L2 * (kb + kc) * s2
     det = h11 * h22 - h12 * h12
     dt1 = -(h22 * g1r - h12 * g2r) / det
@@ -935,7 +946,6 @@ def _branch_state(P, t1, t2):
     lo, hi = _eig2(h11, h12, h22)
     v = _mode(h11, h12, h22, lo)
     # total derivative of H along the branch (third derivatives; dh11/dt1 = -g1 = 0)
-    k12 = kc * L1 * L2 * s12
     dh11 = L1 * (ka + kc) * c1 + k12 * dt2
     dh22 = L2 * (kb + kc) * c2 + k12 * dt1
     dh12 = k12 * (dt1 + dt2)
@@ -960,15 +970,7 @@ def _fold_newton(P, t1, t2, rho, max_iter=16):
         _, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = P
         a1 = (ka + kc) * rho + f3x
         a2 = (kb + kc) * rho - f4x
-        s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
-        s12 = s1 * c2 + c1 * s2
-        c12 = c1 * c2 - s1 * s2
-        g1 = L1 * (a1 * s1 - kc * L2 * s12 - f3y * c1)
-        g2 = L2 * (a2 * s2 - kc * L1 * s12 - f4y * c2)
-        h11 = L1 * (a1 * c1 - kc * L2 * c12 + f3y * s1)
-        h22 = L2 * (a2 * c2 - kc * L1 * c12 + f4y * s2)
-        h12 = -kc * L1 * L2 * c12
-        k12 = kc * L1 * L2 * s12
+        s1, c1, s2, c2, g1, g2, h11, h12, h22, k12 = _local_terms(P, t1, t2)
         h11_1, h11_2, h11_r = -g1, k12, L1 * (ka + kc) * c1
         h22_1, h22_2, h22_r = k12, -g2, L2 * (kb + kc) * c2
         ddet = [h11_1 * h22 + h11 * h22_1 - 2 * h12 * k12,
@@ -1008,17 +1010,7 @@ def _swap_newton(P, t, rho, mirror, max_iter=16):
         P[0] = rho
         _, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = P
         t1, t2 = t, sg * t
-        a1 = (ka + kc) * rho + f3x
-        a2 = (kb + kc) * rho - f4x
-        s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
-        s12 = s1 * c2 + c1 * s2
-        c12 = c1 * c2 - s1 * s2
-        g1 = L1 * (a1 * s1 - kc * L2 * s12 - f3y * c1)
-        g2 = L2 * (a2 * s2 - kc * L1 * s12 - f4y * c2)
-        h11 = L1 * (a1 * c1 - kc * L2 * c12 + f3y * s1)
-        h22 = L2 * (a2 * c2 - kc * L1 * c12 + f4y * s2)
-        h12 = -kc * L1 * L2 * c12
-        k12 = kc * L1 * L2 * s12
+        s1, c1, s2, c2, g1, g2, h11, h12, h22, k12 = _local_terms(P, t1, t2)
         # f1 = g1(t, sg t); f2 = (h11 + h22)/2 - sg h12
         f1, f2 = g1, 0.5 * (h11 + h22) - sg * h12
         j11 = h11 + sg * h12

@@ -362,3 +362,30 @@ def test_one_root_polished_twice_is_reported_once():
     mirrored = equilibria(p.with_(f3y=152.0))
     assert sorted(np.round([e.theta1 for e in found], 9)) == \
         sorted(np.round([-e.theta1 for e in mirrored], 9))
+
+
+def test_batch_solves_generic_rows_itself_and_agrees_with_the_scalar_solver(monkeypatch):
+    """The batch fast path must not hand generic rows to the scalar path (a second-angle
+    candidate that passed CANDIDATE_TOL by coincidence is pruned by CANDIDATE_RATIO
+    instead of failing Newton and marking its row delicate); where it answers, it
+    answers what the scalar solver does."""
+    import importlib
+    eq_module = importlib.import_module('tensegrity_ros.core.equilibria')
+    rng = np.random.default_rng(11)
+    n = 20_000
+    args = dict(rho=rng.uniform(0.01, 3, n), L1=rng.uniform(0.2, 3, n), L2=rng.uniform(0.2, 3, n),
+                ka=rng.uniform(10, 500, n), kb=rng.uniform(10, 500, n), kc=rng.uniform(10, 500, n),
+                f3x=rng.normal(0, 20, n), f3y=rng.normal(0, 20, n), f4x=rng.normal(0, 20, n),
+                f4y=rng.normal(0, 20, n), m1=rng.uniform(0, 2, n), m2=rng.uniform(0, 2, n))
+    scalar_rows = []
+    solve_scalar = eq_module._solve_scalar
+    monkeypatch.setattr(eq_module, '_solve_scalar',
+                        lambda consts: scalar_rows.append(consts) or solve_scalar(consts))
+    b = equilibria_batch(**args)
+    assert len(scalar_rows) <= 0.001 * n, len(scalar_rows)
+    for i in rng.choice(n, size=400, replace=False):
+        p = ModuleParams(**{k: float(a[i]) for k, a in args.items()})
+        s = equilibria(p)
+        assert b.num_equilibria[i] == len(s) and b.num_stable[i] == s.num_stable, i
+        for t in b.theta[i][b.valid[i]]:
+            assert contains(s, t, 1e-9), (i, t)

@@ -800,43 +800,39 @@ def _batch_block(v, g):
         t1[horizontal] = _batch_horizontal_first_angles(
             *(c[horizontal] for c in (consts[0], consts[2], consts[4], consts[5])))
 
-    cols = [c[:, None] for c in consts]
-    t1, t2, g2 = _batch_candidates(t1, *cols)                     # (n, 24)
-    rows, slots = np.nonzero(np.abs(g2) <= CANDIDATE_TOL * scale[:, None])   # nan -> False
-    c = [x[rows] for x in consts]
-    start1, start2 = t1[rows, slots], t2[rows, slots]
-    s1, s2 = _newton(start1, start2, *c)
+    # From here on, one entry per real first angle / per candidate (rows ascending).
+    real = np.isfinite(t1)
+    root_rows = np.nonzero(real)[0]
+    roots = t1[real]
+    c = [x[root_rows] for x in consts]
+    t2, check = _batch_candidates(roots, *c, scale[root_rows])    # (m, 4)
+    root_index, route = np.nonzero(check <= _candidate_limit(check, scale[root_rows]))
+    rows = root_rows[root_index]
+    c = [x[root_index] for x in c]
+    s1, s2 = _newton(roots[root_index], t2[root_index, route], *c)
     g1, g2 = _residual(s1, s2, *c)
-    residual = np.maximum(np.abs(g1), np.abs(g2)) / scale[rows]
+    converged = np.maximum(np.abs(g1), np.abs(g2)) <= CONVERGED_TOL * scale[rows]
     # Rows with anything delicate (a candidate that did not converge, solutions
     # crowding together, a nearly singular equilibrium, an odd count) are solved
     # again by the scalar path, which is the reference: the batch is a fast path
     # for the generic rows, not a second algorithm for the degenerate ones.
     hard = near_circle.copy()           # a root just off the circle: a pair about to merge
-    hard[rows[~(residual <= CONVERGED_TOL)]] = True
-    keep = residual <= CONVERGED_TOL
-    rows, s1, s2, residual = rows[keep], s1[keep], s2[keep], residual[keep]
-    order = np.argsort(rows, kind='stable')
-    rows, s1, s2, residual = rows[order], s1[order], s2[order], residual[order]
-    counts = np.bincount(rows, minlength=n)
-    slots = np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts)
-    width = max(6, int(counts.max(initial=0)))
-
-    theta = np.full((n, width, 2), np.nan)
-    res = np.full((n, width), np.inf)
-    theta[rows, slots, 0] = _wrap(s1)
-    theta[rows, slots, 1] = _wrap(s2)
-    res[rows, slots] = residual
-    theta, res = _compact(theta, res, np.isfinite(res), width)
-    valid, crowded = _batch_unique(theta, res)
+    hard[rows[~converged]] = True
+    rows = rows[converged]
+    solutions = np.stack([_wrap(s1[converged]), _wrap(s2[converged])], -1)
+    slots = _slots(rows, n)
+    theta = np.full((n, max(6, int(slots.max(initial=-1)) + 1), 2), np.nan)
+    theta[rows, slots] = solutions
+    valid, crowded = _batch_unique(theta)
     hard |= crowded
     hard |= valid.sum(axis=1) > 6
-    theta, res = _compact(theta, res, valid, 6)
-    valid = np.isfinite(res)
+    theta = _pack(theta, valid, 6)
+    valid = np.isfinite(theta[..., 0])
     valid[continuum] = False
+    cols = [x[:, None] for x in consts]
     eigenvalues = _batch_eigenvalues(theta, valid, cols, v['L1'], v['L2'])
-    ev_scale = np.max(np.abs(eigenvalues), axis=-1)
-    hard |= (valid & (np.min(np.abs(eigenvalues), axis=-1) <= HARD_TOL * ev_scale)).any(axis=1)
+    small, big = np.abs(eigenvalues[..., 0]), np.abs(eigenvalues[..., 1])
+    hard |= (valid & (np.minimum(small, big) <= HARD_TOL * np.maximum(small, big))).any(axis=1)
     hard |= valid.sum(axis=1) % 2 == 1
     hard &= ~continuum
     if np.any(hard):
@@ -855,12 +851,31 @@ def _batch_block(v, g):
                             continuum=continuum)
 
 
+#: A batch candidate whose check residual exceeds CANDIDATE_RATIO times the
+#: best one of the same t1 (and CANDIDATE_FLOOR relative to the scale) is not
+#: polished: the best one is the equilibrium above that t1, the others passed
+#: CANDIDATE_TOL by coincidence (Newton from them wanders, and a candidate that
+#: does not converge would send the row to the scalar path).  Two equilibria
+#: above one t1 (a double root) have check residuals of the same size, as both
+#: reflect the error of that root, so both stay.
+CANDIDATE_RATIO = 1e4
+CANDIDATE_FLOOR = 1e-9
+
+
+def _candidate_limit(check, scale):
+    """Acceptance limit (m, 1) for the |check| (m, 4) of each first angle, see CANDIDATE_RATIO."""
+    best = np.fmin(np.fmin(check[:, 0], check[:, 1]), np.fmin(check[:, 2], check[:, 3]))
+    limit = np.minimum(CANDIDATE_TOL * scale,
+                       np.maximum(CANDIDATE_RATIO * best, CANDIDATE_FLOOR * scale))
+    return limit[:, None]
+
+
 #: Rows with an equilibrium whose |lambda_min| is below this times |lambda_max|
 #: are solved by the scalar path.
 HARD_TOL = 1e-5
 
 
-def _batch_candidates(t1, a1, b1, a2, b2, kcL1, kcL2):
+def _batch_candidates(t1, a1, b1, a2, b2, kcL1, kcL2, scale):
     """Candidate t2 for each t1, and the residual of the other equation there.
 
     From g1 = 0: with sin(t1 + t2) = r / (kc L2) =: sin(phi), t2 = phi - t1 and
@@ -869,8 +884,8 @@ def _batch_candidates(t1, a1, b1, a2, b2, kcL1, kcL2):
     (checked by g1), kept only where no g1 candidate close to it passed.  The
     g1 route is ill-conditioned when the loads dwarf kc L2 (a small error in
     t1 becomes a large one in phi); the g2 route then is not, and conversely.
-    Returns (t1, t2, check), each (n, 4 * width); ``check`` is nan for
-    suppressed candidates.
+    All arguments have the shape (m,) of t1; returns (t2, |check|), each
+    (m, 4); ``check`` is nan for suppressed candidates.
     """
     s1, c1 = np.sin(t1), np.cos(t1)
     sphi = np.clip((a1 * s1 - b1 * c1) / kcL2, -1.0, 1.0)
@@ -888,8 +903,6 @@ def _batch_candidates(t1, a1, b1, a2, b2, kcL1, kcL2):
     s12 = s1 * cpsi + c1 * spsi                       # sin(t1 + psi)
     r = a1 * s1 - b1 * c1
     g1c, g1d = r - kcL2 * s12, r + kcL2 * s12
-    scale = np.maximum.reduce([np.abs(a1), np.abs(b1), np.abs(a2), np.abs(b2),
-                               np.abs(kcL1), np.abs(kcL2)])
     tol = CANDIDATE_TOL * scale
     t2a, t2b, t2c, t2d = phi - t1, np.pi - phi - t1, psi, psi + np.pi
 
@@ -901,9 +914,8 @@ def _batch_candidates(t1, a1, b1, a2, b2, kcL1, kcL2):
         cx, sx = sign * cpsi, sign * spsi
         redundant = ((passed_a & near(c2a, s2a, cx, sx)) | (passed_b & near(c2b, s2b, cx, sx)))
         g1x[redundant] = np.nan
-    return (np.concatenate([t1, t1, t1, t1], axis=1),
-            np.concatenate([t2a, t2b, t2c, t2d], axis=1),
-            np.concatenate([g2a, g2b, g1c, g1d], axis=1))
+    return (np.stack([t2a, t2b, t2c, t2d], axis=-1),
+            np.abs(np.stack([g2a, g2b, g1c, g1d], axis=-1)))
 
 
 #: Offset of the tan-half variable of the batch solver (rad); any value off the
@@ -985,13 +997,20 @@ def _batch_arrays(**values):
     return out
 
 
-def _compact(theta, residual, keep, width):
-    """Move kept slots to the front (by residual order) and keep ``width`` of them."""
-    order = np.argsort(np.where(keep, residual, np.inf), axis=1, kind='stable')[:, :width]
-    theta = np.take_along_axis(theta, order[..., None], axis=1)
-    residual = np.take_along_axis(np.where(keep, residual, np.inf), order, axis=1)
-    theta[~np.isfinite(residual)] = np.nan
-    return theta, residual
+def _slots(rows, n):
+    """Position of each entry within its row, for ascending ``rows`` in range(n)."""
+    counts = np.bincount(rows, minlength=n)
+    return np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts)
+
+
+def _pack(theta, keep, width):
+    """The kept slots of theta (n, w, 2) moved to the front, in order, ``width`` of them."""
+    rows, slots = np.nonzero(keep)
+    packed = _slots(rows, keep.shape[0])
+    fits = packed < width
+    out = np.full((keep.shape[0], width, 2), np.nan)
+    out[rows[fits], packed[fits]] = theta[rows[fits], slots[fits]]
+    return out
 
 
 def _batch_horizontal_first_angles(a1, a2, kcL1, kcL2):
@@ -1004,14 +1023,14 @@ def _batch_horizontal_first_angles(a1, a2, kcL1, kcL2):
     return out
 
 
-def _batch_unique(theta, residual):
+def _batch_unique(theta):
     """(mask of the distinct solutions per row, rows where solutions crowd together).
 
-    Slots are sorted by residual already; identical solutions (IDENTICAL_TOL)
-    keep the first.  Rows with two solutions within CROWDED_RADIUS need the
-    cluster analysis of :func:`_unique` (the scalar path).
+    Empty slots are nan; of identical solutions (IDENTICAL_TOL, both converged
+    to rounding level) the first is kept.  Rows with two solutions within
+    CROWDED_RADIUS need the cluster analysis of :func:`_unique` (the scalar path).
     """
-    finite = np.isfinite(residual)
+    finite = np.isfinite(theta[..., 0])
     keep = finite.copy()
     crowded = np.zeros(theta.shape[0], dtype=bool)
     two_pi = 2.0 * np.pi

@@ -389,3 +389,19 @@ def test_batch_solves_generic_rows_itself_and_agrees_with_the_scalar_solver(monk
         assert b.num_equilibria[i] == len(s) and b.num_stable[i] == s.num_stable, i
         for t in b.theta[i][b.valid[i]]:
             assert contains(s, t, 1e-9), (i, t)
+
+
+@pytest.mark.parametrize('f3x', [5.707168277935829e-07, 0.25])
+def test_clustered_first_angles_keep_every_candidate(f3x):
+    """Found by hypothesis (swap symmetry) while trying CANDIDATE_RATIO pruning in the
+    scalar path: at rho = L1 = L2 = 2 with tiny loads three first angles cluster at
+    t1 = 0, the near miss (0, 0) checks better than the genuine saddle (0, -pi), and
+    pruning lost it.  The scalar path never prunes; the batch only prunes isolated roots."""
+    p = ModuleParams(rho=2.0, L1=2.0, L2=2.0, ka=945.0, kb=945.0, kc=945.0, f3x=f3x,
+                     f3y=5.707168277935829e-07, f4x=-f3x, f4y=5.707168277935829e-07)
+    s = equilibria(p)
+    check_invariants(p, s)
+    for theta in ((0.0, -math.pi), (-math.pi, 0.0), (-math.pi, -math.pi)):
+        assert contains(s, theta, 1e-9), theta
+    b = batch_of(p)
+    assert b.num_equilibria[0] == len(s) == 4 and b.num_stable[0] == s.num_stable == 1

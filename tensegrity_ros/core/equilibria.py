@@ -833,9 +833,10 @@ def _batch_block(v, g):
     g1, g2 = _residual(s1, s2, *c)
     converged = np.maximum(np.abs(g1), np.abs(g2)) <= CONVERGED_TOL * scale[rows]
     # Rows with anything delicate (a candidate that did not converge, solutions
-    # crowding together, a nearly singular equilibrium, an odd count) are solved
-    # again by the scalar path, which is the reference: the batch is a fast path
-    # for the generic rows, not a second algorithm for the degenerate ones.
+    # crowding together, a nearly singular equilibrium, an index sum that breaks
+    # Poincare-Hopf) are solved again by the scalar path, which is the reference:
+    # the batch is a fast path for the generic rows, not a second algorithm for
+    # the degenerate ones.
     hard = near_circle.copy()           # a root just off the circle: a pair about to merge
     hard[rows[~converged]] = True
     rows = rows[converged]

@@ -829,9 +829,8 @@ def _batch_block(v, g):
     root_index, route = np.nonzero(check <= limit)
     rows = root_rows[root_index]
     c = [x[root_index] for x in c]
-    s1, s2 = _newton(roots[root_index], t2[root_index, route], *c)
-    g1, g2 = _residual(s1, s2, *c)
-    converged = np.maximum(np.abs(g1), np.abs(g2)) <= CONVERGED_TOL * scale[rows]
+    s1, s2, residual = _newton(roots[root_index], t2[root_index, route], *c, scale[rows])
+    converged = residual <= CONVERGED_TOL
     # Rows with anything delicate (a candidate that did not converge, solutions
     # crowding together, a nearly singular equilibrium, an index sum that breaks
     # Poincare-Hopf) are solved again by the scalar path, which is the reference:
@@ -1088,36 +1087,46 @@ def _batch_unique(theta):
     return keep, crowded
 
 
-def _newton(t1, t2, a1, b1, a2, b2, kcL1, kcL2):
-    """Newton on (g1, g2) for arrays of candidates, iterating only the unconverged."""
+def _newton(t1, t2, a1, b1, a2, b2, kcL1, kcL2, scale):
+    """Newton on (g1, g2) for arrays of candidates, iterating only the unconverged.
+
+    Returns (t1, t2, max |g| / scale) at the last point where g was evaluated,
+    so the residual certifies the returned point.  A point stops at rounding
+    level (|g| <= 4e-16 scale: near a multiple root a step from there only
+    amplifies the rounding, as in _polish), after a step below 1e-14 rad
+    (converged: g is evaluated once more there), or where g is singular.
+    """
     t1, t2 = t1.copy(), t2.copy()
+    residual = np.full(t1.shape, np.inf)
     active = np.arange(t1.size)
-    consts = (a1, b1, a2, b2, kcL1, kcL2)
-    # as in _polish: a point already at rounding level stays (near a multiple
-    # root a Newton step from there only amplifies the rounding)
-    tolerance = 4e-16 * np.broadcast_to(np.maximum.reduce([np.abs(c) for c in consts]), t1.shape)
-    for _ in range(NEWTON_MAX_ITER):
-        if active.size == 0:
-            break
-        u1, u2 = t1[active], t2[active]
-        a1, b1, a2, b2, kcL1, kcL2 = (np.broadcast_to(c, t1.shape)[active] for c in consts)
-        tol = tolerance[active]
+    u1, u2 = t1, t2
+    last = np.zeros(t1.shape, dtype=bool)           # took a tiny step: evaluate and stop
+    a1, b1, a2, b2, kcL1, kcL2, scale = (np.broadcast_to(c, t1.shape)
+                                         for c in (a1, b1, a2, b2, kcL1, kcL2, scale))
+    for iteration in range(NEWTON_MAX_ITER + 1):
         s1, c1, s2, c2 = np.sin(u1), np.cos(u1), np.sin(u2), np.cos(u2)
         s12 = s1 * c2 + c1 * s2
         c12 = c1 * c2 - s1 * s2
         g1 = a1 * s1 - b1 * c1 - kcL2 * s12
         g2 = a2 * s2 - b2 * c2 - kcL1 * s12
+        size = np.maximum(np.abs(g1), np.abs(g2))
+        residual[active] = size / scale
         j11 = a1 * c1 + b1 * s1 - kcL2 * c12
         j22 = a2 * c2 + b2 * s2 - kcL1 * c12
         det = j11 * j22 - kcL1 * kcL2 * c12 * c12
-        ok = (det != 0.0) & (np.maximum(np.abs(g1), np.abs(g2)) > tol)
-        det = np.where(ok, det, 1.0)
-        d1 = np.where(ok, (j22 * g1 + kcL2 * c12 * g2) / det, 0.0)
-        d2 = np.where(ok, (j11 * g2 + kcL1 * c12 * g1) / det, 0.0)
-        t1[active] = u1 - d1
-        t2[active] = u2 - d2
-        active = active[np.abs(d1) + np.abs(d2) > 1e-14]
-    return t1, t2
+        going = (det != 0.0) & (size > 4e-16 * scale) & ~last
+        if iteration == NEWTON_MAX_ITER or not going.any():
+            break
+        det = np.where(going, det, 1.0)
+        d1 = (j22 * g1 + kcL2 * c12 * g2) / det
+        d2 = (j11 * g2 + kcL1 * c12 * g1) / det
+        active = active[going]
+        last = (np.abs(d1) + np.abs(d2) <= 1e-14)[going]
+        u1, u2 = u1[going] - d1[going], u2[going] - d2[going]
+        t1[active], t2[active] = u1, u2
+        a1, b1, a2, b2, kcL1, kcL2, scale = (c[going] for c in (a1, b1, a2, b2, kcL1, kcL2,
+                                                                 scale))
+    return t1, t2, residual
 
 
 def _batch_eigenvalues(theta, valid, cols, L1, L2):

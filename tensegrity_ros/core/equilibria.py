@@ -854,10 +854,14 @@ def _batch_block(v, g):
     low, high = eigenvalues[..., 0], eigenvalues[..., 1]
     small, big = np.abs(low), np.abs(high)
     hard |= (valid & (np.minimum(small, big) <= HARD_TOL * np.maximum(small, big))).any(axis=1)
-    # Poincare-Hopf on the torus: #minima + #maxima - #saddles = 0 when all are
-    # non-degenerate (which the line above ensures); a lost root breaks it.
-    index = np.where(valid, np.sign(low) * np.sign(high), 0.0)
-    hard |= index.sum(axis=1) != 0
+    # All non-degenerate now (the line above): the energy is a Morse function on
+    # the torus, so Poincare-Hopf (#minima + #maxima - #saddles = 0) and the Morse
+    # inequalities (at least one minimum, one maximum, two saddles) hold; a lost
+    # root breaks one of them.
+    minima = (valid & (low > 0.0)).sum(axis=1)
+    maxima = (valid & (high < 0.0)).sum(axis=1)
+    saddles = valid.sum(axis=1) - minima - maxima
+    hard |= (minima + maxima != saddles) | (minima < 1) | (maxima < 1) | (saddles < 2)
     hard &= ~continuum
     if np.any(hard):
         index = np.nonzero(hard)[0]

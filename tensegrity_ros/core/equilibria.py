@@ -37,7 +37,10 @@ Degenerate parameters:
   reported at the singular point, i.e. as degenerate;
 - a continuum of equilibria is reported as such.
 The batch form is a vectorised fast path for generic points and hands every
-delicate row to the scalar solver, so both give the same answer.
+delicate row to the scalar solver, so both give the same answer: a root just
+off the circle, a candidate that does not converge, solutions crowding
+together, a nearly singular equilibrium, or a set that breaks Poincare-Hopf or
+the Morse inequalities of the torus (a lost root).
 """
 from __future__ import annotations
 

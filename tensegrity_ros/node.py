@@ -822,9 +822,11 @@ class TensegrityNode(Node):
                 trigger = next(iter(targets.values()))[0]
                 self._move_stack(ends, 'joint_commands', trigger)
             return self._publish_joint_states()
-        now = None
+        # one message, one start time: every speed-limited target starts moving at the time
+        # the published state is stamped with (not one clock reading per joint)
+        now = self._now_ns()
         for slot, value in targets.values():
-            now = self._command_rho(slot, value, 'joint_commands')
+            self._command_rho(slot, value, 'joint_commands', now)
         self._publish_joint_states(now)
 
     def _on_reset(self, request, response):
@@ -910,12 +912,13 @@ class TensegrityNode(Node):
     def _now_ns(self):
         return self._node_clock.now().nanoseconds
 
-    def _command_rho(self, slot, value, cause):
-        """Apply an actuator target; returns the time (ns) the new state holds for."""
+    def _command_rho(self, slot, value, cause, now=None):
+        """Apply an actuator target received at ``now`` (ns, default: now); returns the time
+        (ns) the new state holds for."""
         self._counters['commands_processed'] += 1
         self._warn_if_jump_ahead(slot, value, cause)
         if slot.max_rho_rate > 0.0:
-            now = self._now_ns()
+            now = self._now_ns() if now is None else now
             self._advance(slot, now)
             slot.target = None if value == slot.params.rho else value
             slot.target_cause = cause

@@ -5,6 +5,7 @@ differences of :func:`energy` (or of the derivative below it), and the energy
 itself against an independent evaluation from the node positions.
 """
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -250,6 +251,66 @@ def test_masses_must_be_non_negative(name):
         ModuleParams(**{**valid_kwargs(), name: -0.5})
     assert name in str(info.value) and '-0.5' in str(info.value)
     assert getattr(ModuleParams(**{**valid_kwargs(), name: 0.0}), name) == 0.0
+
+
+@pytest.mark.parametrize('name, bad', [('L1', 1.5e50), ('rho', 1e99), ('kc', -2e50),
+                                       ('f3y', -1e60), ('f4x', 1e51), ('m2', 3e50), ('g', 1e80),
+                                       ('L2', 1e-51), ('ka', 5e-301), ('rho', 1e-60)])
+def test_magnitudes_outside_the_supported_range_are_refused(name, bad):
+    """Beyond MAX_MAGNITUDE (or below MIN_MAGNITUDE for lengths and stiffnesses) products
+    such as k L^2 leave double precision: refused with the name and the value, by the
+    single and the batch form alike."""
+    with pytest.raises(InvalidParameterError) as info:
+        ModuleParams(**{**valid_kwargs(), name: bad})
+    assert name in str(info.value) and repr(bad) in str(info.value)
+    if name != 'g':
+        with pytest.raises(InvalidParameterError, match=name):
+            equilibria_batch(**{'rho': np.full(3, 0.5), name: np.array([1.0, bad, 1.0])})
+
+
+EXTREMES = [  # (parameters, status): where one term dominates by ~1e100 the equations
+    # vanish within rounding relative to it, a continuum
+    (dict(rho=0.7, L1=1e50, L2=1e50, kc=1e50, f4y=1e50), 'continuum'),
+    (dict(rho=0.7, L1=1e50, L2=1e50, ka=1e-50, kb=1e-50, kc=1e-50, f4y=1.0, f3x=-0.3), 'ok'),
+    (dict(rho=1e-50, L1=1e-50, L2=2e-50, ka=1e-50, kb=1e-50, kc=1e-50, f3y=-1e-50), 'continuum'),
+    (dict(rho=0.5, L2=1e-50, kc=1e-50, f3y=1e50, f4y=-1e50, m1=1e50), 'ok'),
+    (dict(rho=1e50, L1=1e50, L2=1e50, ka=1e50, kb=1e50, kc=1e50, f3y=1e50, f4y=-1e50), 'ok'),
+    (dict(rho=1e-50, L1=1e-50, L2=1e-50, ka=1e50, kb=1e50, kc=1e50, f3y=1e-3, f4x=2e-3), 'ok'),
+]
+
+
+@pytest.mark.parametrize('kwargs, status', EXTREMES)
+def test_extreme_supported_values_solve_without_overflow(kwargs, status):
+    """At the ends of the supported range nothing overflows (the solver works in exactly
+    rescaled constants) and what comes back is verified: residuals at rounding level and
+    the index sum of a Morse function on the torus; single and batch agree."""
+    p = ModuleParams(**kwargs)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        s = equilibria(p)
+        b = equilibria_batch(**kwargs)
+    assert s.status == status
+    assert bool(b.continuum[0]) == (status == 'continuum')
+    if status == 'ok':
+        assert 2 <= len(s) <= 6
+        assert all(e.residual <= 1e-13 and math.isfinite(e.energy) for e in s)
+        kinds = [e.kind for e in s]
+        if 'degenerate' not in kinds:
+            assert kinds.count('minimum') + kinds.count('maximum') == kinds.count('saddle')
+    assert b.num_equilibria[0] == len(s) and b.num_stable[0] == s.num_stable
+
+
+def test_power_of_two_rescaling_is_exact():
+    """Scaling every stiffness and force by 2^k scales all equations exactly, so the angles
+    must come out bitwise the same (the solver's own rescaling relies on this)."""
+    p = ModuleParams(rho=0.63, L1=1.1, L2=0.9, ka=120.0, kb=80.0, kc=95.0, f3x=3.0,
+                     f3y=-7.0, f4x=-2.0, f4y=4.0)
+    for k in (-60, -1, 1, 60):
+        f = 2.0 ** k
+        q = p.with_(ka=p.ka * f, kb=p.kb * f, kc=p.kc * f, f3x=p.f3x * f, f3y=p.f3y * f,
+                    f4x=p.f4x * f, f4y=p.f4y * f)
+        assert [(e.theta1, e.theta2) for e in equilibria(q)] == \
+            [(e.theta1, e.theta2) for e in equilibria(p)]
 
 
 def test_forces_may_have_any_sign():

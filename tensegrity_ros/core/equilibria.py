@@ -309,6 +309,7 @@ def equilibria(params: ModuleParams) -> EquilibriumSet:
 
 def _solve_scalar(consts):
     """Every equilibrium [(t1, t2, relative residual)] for one point, None if a continuum."""
+    consts = _normalized(consts)
     a1, b1, a2, b2, kcL1, kcL2 = consts
     scale = max(abs(c) for c in consts)
     coefficients = _polynomial_scalar(*consts)
@@ -332,6 +333,17 @@ def _solve_scalar(consts):
                 if sigma_min > SNAP_SEARCH * scale:
                     regular.add(solution)
     return _snap_double_roots(_unique(found, consts), consts, regular)
+
+
+def _normalized(consts):
+    """The constants divided by the power of two nearest their scale.
+
+    The equations are homogeneous in them, and scaling by a power of two is
+    exact: the solutions come out bitwise the same, while the polynomial
+    (fourth powers of the constants) can no longer overflow.
+    """
+    shift = math.frexp(max(abs(c) for c in consts))[1]
+    return tuple(math.ldexp(c, -shift) for c in consts)
 
 
 #: A g2-route candidate for t2 is redundant within this of a g1-route one (rad).
@@ -809,8 +821,11 @@ def _batch_block(v, g):
     """:func:`equilibria_batch` on validated, flattened parameter arrays."""
     f3y_total = v['f3y'] - 0.5 * v['m1'] * g
     f4y_total = v['f4y'] - 0.5 * v['m2'] * g
-    consts = _reduced_coefficients(v['rho'], v['L1'], v['L2'], v['ka'], v['kb'], v['kc'],
-                                   v['f3x'], f3y_total, v['f4x'], f4y_total)
+    physical = _reduced_coefficients(v['rho'], v['L1'], v['L2'], v['ka'], v['kb'], v['kc'],
+                                     v['f3x'], f3y_total, v['f4x'], f4y_total)
+    # solved in exactly rescaled constants (see _normalized); Hessians need the physical ones
+    shift = np.frexp(_scale(*physical))[1]
+    consts = tuple(np.ldexp(c, -shift) for c in physical)
     n = consts[0].size
     scale = _scale(*consts)
     laurent = _polynomial(*consts)                                # (n, 7), z^3 .. z^-3
@@ -852,7 +867,7 @@ def _batch_block(v, g):
     theta = _pack(theta, valid, 6)
     valid = np.isfinite(theta[..., 0])
     valid[continuum] = False
-    cols = [x[:, None] for x in consts]
+    cols = [x[:, None] for x in physical]
     eigenvalues = _batch_eigenvalues(theta, valid, cols, v['L1'], v['L2'])
     low, high = eigenvalues[..., 0], eigenvalues[..., 1]
     small, big = np.abs(low), np.abs(high)
@@ -1032,15 +1047,18 @@ def _batch_arrays(**values):
     out = {}
     for (name, _), arr in zip(values.items(), arrays):
         arr = arr.ravel()
-        bad = ~np.isfinite(arr)
+        bad = ~(np.abs(arr) <= _module.MAX_MAGNITUDE)              # also nan and inf
         if name in ('rho', 'L1', 'L2', 'ka', 'kb', 'kc'):
-            bad |= ~(arr > 0)
+            bad |= ~(arr >= _module.MIN_MAGNITUDE)
         elif name in ('m1', 'm2'):
             bad |= ~(arr >= 0)
         if np.any(bad):
             index = int(np.argmax(bad))
             raise InvalidParameterError(
-                f'{name} has an invalid value {arr[index]!r} at index {index}')
+                f'{name} has an invalid value {arr[index]!r} at index {index} (finite, '
+                f'at most {_module.MAX_MAGNITUDE:g} in magnitude'
+                + (f', lengths and stiffnesses at least {_module.MIN_MAGNITUDE:g})'
+                   if name in ('rho', 'L1', 'L2', 'ka', 'kb', 'kc') else ')'))
         out[name] = arr
     return out
 

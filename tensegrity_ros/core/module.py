@@ -24,6 +24,12 @@ PARAMETER_NAMES = ('rho', 'L1', 'L2', 'ka', 'kb', 'kc',
 _POSITIVE = ('rho', 'L1', 'L2', 'ka', 'kb', 'kc')
 _NON_NEGATIVE = ('m1', 'm2')
 
+#: Supported range: |x| <= MAX_MAGNITUDE for every parameter, and lengths and
+#: stiffnesses >= MIN_MAGNITUDE, so that products such as k L^2 (an energy) stay
+#: far inside double precision (1e-308 .. 1e308) instead of overflowing.
+MAX_MAGNITUDE = 1e50
+MIN_MAGNITUDE = 1e-50
+
 
 class InvalidParameterError(ValueError):
     """A parameter is non-finite or outside its physical range."""
@@ -63,11 +69,17 @@ class ModuleParams:
                     f'{f.name} must be a real number, got {value!r}') from None
             if not math.isfinite(value):
                 raise InvalidParameterError(f'{f.name} must be finite, got {value!r}')
+            if abs(value) > MAX_MAGNITUDE:
+                raise InvalidParameterError(
+                    f'{f.name} must be at most {MAX_MAGNITUDE:g} in magnitude, got {value!r}')
             object.__setattr__(self, f.name, value)
         for name in _POSITIVE:
             if getattr(self, name) <= 0.0:
                 raise InvalidParameterError(
                     f'{name} must be positive, got {getattr(self, name)!r}')
+            if getattr(self, name) < MIN_MAGNITUDE:
+                raise InvalidParameterError(
+                    f'{name} must be at least {MIN_MAGNITUDE:g}, got {getattr(self, name)!r}')
         for name in _NON_NEGATIVE:
             if getattr(self, name) < 0.0:
                 raise InvalidParameterError(

@@ -1162,6 +1162,10 @@ def main(argv=None):
     except (OSError, RuntimeError) as exc:
         sys.stderr.write(f'{prog}: error: {exc}\n')
         return EXIT_FAILURE
+    except Exception as exc:             # a bug of ours: still one line, never a traceback
+        sys.stderr.write(f'{prog}: internal error (please report): '
+                         f'{type(exc).__name__}: {exc}\n')
+        return EXIT_FAILURE
 
 
 if __name__ == '__main__':

@@ -779,6 +779,10 @@ class TensegrityNode(Node):
             x, y = msg.x, msg.y          # z is ignored (planar mechanism)
             if not (math.isfinite(x) and math.isfinite(y)):
                 return self._reject('non_finite', f'{topic}: ({x!r}, {y!r}) is not finite')
+            try:
+                end = slot.params.with_(**{fields[0]: x, fields[1]: y})
+            except InvalidParameterError as exc:     # beyond the supported magnitudes
+                return self._reject('out_of_range', f'{topic}: {exc}')
             self._counters['commands_processed'] += 1
             now = self._now_ns()
             self._advance(slot, now)

@@ -185,6 +185,11 @@ BAD_ARGUMENTS = [
     ['limit', '--L2', '-1'],
     ['limit', '--L2', '1', '--F3', '1'],
     ['limit', '--k', '0'],
+    # outside the supported magnitudes (these overflowed into a traceback once)
+    ['solve', '--rho', '0.72', '--L1', '5.6e99', '--L2', '1.27e6', '--F4', '1e29'],
+    ['solve', '--rho', '0.88', '--L1', '1.9e-12', '--L2', '5.4e-301', '--k', '1.7e-30'],
+    ['solve', '--rho', '0.5', '--F', '-1e60'],
+    ['track', '--rho', '0.5', '--to-rho', '1', '--kc', '1e-60'],
 ]
 
 

@@ -482,8 +482,12 @@ def test_bad_forces_are_dropped_and_counted(harness):
         for which in ('a3', 'a4'):
             h.rejected('rejected_non_finite',
                        lambda: h.force_pubs[which].publish(Vector3(x=x, y=y, z=0.0)))
+    for which in ('a3', 'a4'):                          # beyond the supported 1e50 N
+        h.rejected('rejected_out_of_range',
+                   lambda: h.force_pubs[which].publish(Vector3(x=0.0, y=-1e60, z=0.0)))
     v = h.eq()
     assert (v['f3x'], v['f3y'], v['f4x'], v['f4y']) == ('0', '0', '0', '0')
+    assert h.counter('callback_exceptions') == 0
 
 
 def test_unexpected_exception_in_a_callback_is_counted_not_raised(harness, monkeypatch):
@@ -560,6 +564,8 @@ def test_parameter_refusals_have_reasons_and_are_counted(harness):
         (Parameter('m0.k', value=0.0), 'k', 'rejected_parameter_value'),
         (Parameter('m0.kc', value=-5.0), 'kc', 'rejected_parameter_value'),
         (Parameter('m0.L2', value=float('nan')), 'L2', 'rejected_parameter_value'),
+        (Parameter('m0.L1', value=1e99), 'L1', 'rejected_parameter_value'),     # overflows
+        (Parameter('m0.force_a4', value=[0.0, -1e60]), 'f4y', 'rejected_parameter_value'),
         (Parameter('m0.force_a3', value=[1.0, 2.0, 3.0]), 'force_a3', 'rejected_parameter_value'),
         (Parameter('m0.force_a4', value=[float('inf'), 0.0]), 'force_a4',
          'rejected_parameter_value'),

@@ -321,6 +321,20 @@ def test_operation_range_unloaded_equal_rods_reaches_zero():
     assert r.rho_max == pytest.approx(1.0, abs=1e-13)
 
 
+@pytest.mark.parametrize('L2', [2.5, 3.0, 1.6])
+def test_operation_range_of_the_flat_unloaded_branch(L2):
+    """Found by fuzzing the CLI: the flat branch (-pi, 0) of an unloaded module reached
+    its boundary line 2 rho - L2 + 1 = 0 exactly, where det H = 0, and the branch
+    derivative divided by zero.  Unloaded, the flat branch is stable up to that line."""
+    p = ModuleParams.paper(0.2 * (L2 - 1), L2=L2)
+    flat = [e for e in equilibria(p).stable if abs(e.theta1 + math.pi) < 1e-12
+            and abs(e.theta2) < 1e-12]
+    assert len(flat) == 1
+    r = operation_range(p, flat[0].theta)
+    assert r.upper.kind == BRANCH_POINT
+    assert r.rho_max == pytest.approx(abs(L2 - 1) / 2, abs=1e-12)
+
+
 def test_operation_range_random_cross_check():
     """Seeded random modules: both ends agree with the exact solver's stable-count
     change (bisection) and the range is stable throughout (nearest-match march)."""

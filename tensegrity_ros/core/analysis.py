@@ -941,8 +941,13 @@ def _branch_state(P, t1, t2):
     s1, c1, s2, c2, _, _, h11, h12, h22, k12 = _local_terms(P, t1, t2)
     g1r, g2r = L1 * (ka + kc) * s1, L2 * (kb + kc) * s2
     det = h11 * h22 - h12 * h12
-    dt1 = -(h22 * g1r - h12 * g2r) / det
-    dt2 = -(h11 * g2r - h12 * g1r) / det
+    if det == 0.0:
+        # exactly on a degeneracy (e.g. the flat branch on an unloaded boundary line,
+        # where the numerators vanish too): lambda_min = 0 makes the caller end here
+        dt1 = dt2 = 0.0
+    else:
+        dt1 = -(h22 * g1r - h12 * g2r) / det
+        dt2 = -(h11 * g2r - h12 * g1r) / det
     lo, hi = _eig2(h11, h12, h22)
     v = _mode(h11, h12, h22, lo)
     # total derivative of H along the branch (third derivatives; dh11/dt1 = -g1 = 0)

@@ -296,3 +296,14 @@ def test_settle_from_near_a_maximum_comes_to_rest():
     assert np.all(path.eigenvalues(path.state_from_angles(start, 0.0), 0.0) < 0)
     landed = settle_stack(stack, start, settings=TrackerSettings(flow_evaluations=20000))
     assert landed.stable
+
+
+def test_projection_survives_dependent_constraints():
+    """Found by fuzzing the CLI (solve --modules 3 --rho 1e-6 --L1=1e-6 --k=1e6): flat
+    rods 1e-6 long make the constraint rows of the stack dependent and J J^T singular;
+    the projection then takes the least-squares step instead of raising."""
+    m = ModuleParams(rho=1e-6, L1=1e-6, L2=1.0, ka=1e6, kb=1e6, kc=1e6)
+    stack = Stack((m, m))
+    path = StackPath(stack, stack)
+    y = path.project(path.state_from_angles(np.zeros((2, 2)), 0.0) + 1e-3, 0.0)
+    assert np.all(np.isfinite(y))

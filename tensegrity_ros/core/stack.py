@@ -43,6 +43,15 @@ _DAMPING = 1e-3
 _DAMPING_ONSET = 1e-2
 
 
+def _solve_gram(jc, rhs):
+    """(J J^T)^-1 rhs, or the least-squares answer where the constraints are dependent
+    (a kinematically singular stack: rods folded flat onto a chord, or degenerate sizes)."""
+    try:
+        return np.linalg.solve(jc @ jc.T, rhs)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(jc @ jc.T, rhs, rcond=None)[0]
+
+
 @dataclass(frozen=True)
 class Stack:
     """Modules bottom to top.  ``modules[i].rho`` is module i's actuator length
@@ -324,11 +333,11 @@ class StackPath:
             if np.max(np.abs(c)) < 1e-15 * self.l_ref:
                 break
             jc = self._constraint_jacobian(d_rigid)
-            y[:top.n_var] -= jc.T @ np.linalg.solve(jc @ jc.T, c)
+            y[:top.n_var] -= jc.T @ _solve_gram(jc, c)
         x, mu, d_spring, d_rigid = self._parts(y, s)
         jc = self._constraint_jacobian(d_rigid)
         grad = (self._internal_forces(d_spring, d_rigid, np.zeros_like(mu)) - self._loads)[_FIXED:].ravel()
-        y[top.n_var:] = -np.linalg.solve(jc @ jc.T, jc @ grad)
+        y[top.n_var:] = -_solve_gram(jc, jc @ grad)
         return y
 
     # -- reporting ---------------------------------------------------------------

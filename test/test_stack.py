@@ -307,3 +307,8 @@ def test_projection_survives_dependent_constraints():
     path = StackPath(stack, stack)
     y = path.project(path.state_from_angles(np.zeros((2, 2)), 0.0) + 1e-3, 0.0)
     assert np.all(np.isfinite(y))
+    # and the multipliers of the stability modes (solve --modules 2 --rho 1e-50 --k=1e50
+    # --F3x=2.5 raised there): the multi-start search runs through
+    m = ModuleParams(rho=1e-50, ka=1e50, kb=1e50, kc=1e50, f3x=2.5)
+    found = stack_equilibria(Stack((m, m)), starts=1)
+    assert all(np.all(np.isfinite(e.theta)) for e in found)

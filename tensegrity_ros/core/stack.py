@@ -304,7 +304,7 @@ class StackPath:
         jc, w, z = self._reduced(y, s)
         values, vectors = np.linalg.eigh(z.T @ w @ z)
         dx = z @ vectors
-        dmu = -np.linalg.solve(jc @ jc.T, jc @ w @ dx)
+        dmu = -_solve_gram(jc, jc @ w @ dx)
         return values, np.vstack([dx, dmu])
 
     def descent(self, y, s):

@@ -779,14 +779,17 @@ class TensegrityNode(Node):
             x, y = msg.x, msg.y          # z is ignored (planar mechanism)
             if not (math.isfinite(x) and math.isfinite(y)):
                 return self._reject('non_finite', f'{topic}: ({x!r}, {y!r}) is not finite')
+            forces = {fields[0]: x, fields[1]: y}
             try:
-                end = slot.params.with_(**{fields[0]: x, fields[1]: y})
+                end = slot.params.with_(**forces)
             except InvalidParameterError as exc:     # beyond the supported magnitudes
                 return self._reject('out_of_range', f'{topic}: {exc}')
             self._counters['commands_processed'] += 1
             now = self._now_ns()
+            live = slot.params
             self._advance(slot, now)
-            end = slot.params.with_(**{fields[0]: x, fields[1]: y})
+            if slot.params is not live:              # a pending motion moved rho first
+                end = slot.params.with_(**forces)
             self._move(slot, end, f'force_{which}')
             self._publish_joint_states(now)
         return on_force
@@ -981,10 +984,7 @@ class TensegrityNode(Node):
             self._tracking_failed(slot, f'{cause}: {exc}')
             return
         final = track.final
-        low, high = final.eigenvalues[0], final.eigenvalues[-1]
-        if not low > DEFINITENESS_TOL * abs(high):
-            # the tracker guarantees a verified minimum; never publish anything else
-            self._tracking_failed(slot, f'{cause}: tracker returned an unstable state')
+        if not self._verified_minimum(final, slot, cause):
             return
         slot.params, slot.eq = track.end, final
         slot.dirty = True
@@ -995,6 +995,15 @@ class TensegrityNode(Node):
                                         f'{track.message}')
         elif slot.tracking_status != 'ok':
             slot.tracking_status = 'ok'
+
+    def _verified_minimum(self, final, slot, cause):
+        """The tracker guarantees a verified minimum; never publish anything else (a
+        failure counted against ``slot`` otherwise)."""
+        low, high = final.eigenvalues[0], final.eigenvalues[-1]
+        if low > DEFINITENESS_TOL * abs(high):
+            return True
+        self._tracking_failed(slot, f'{cause}: tracker returned an unstable state')
+        return False
 
     def _move_stack(self, ends, cause, trigger):
         """Stack: track the live StackEquilibrium from the live stack to the stack whose
@@ -1010,9 +1019,7 @@ class TensegrityNode(Node):
             self._tracking_failed(trigger, f'{cause}: {exc}')
             return
         final = track.final
-        low, high = final.eigenvalues[0], final.eigenvalues[-1]
-        if not low > DEFINITENESS_TOL * abs(high):
-            self._tracking_failed(trigger, f'{cause}: tracker returned an unstable state')
+        if not self._verified_minimum(final, trigger, cause):
             return
         self._set_stack(track.end, final)
         for jump in track.jumps:

@@ -5,6 +5,7 @@ publish, exit 0 without a traceback on SIGINT (Ctrl-C) and SIGTERM, and refuse a
 configuration with exit code 2 and a clear message (no traceback).  The subprocess
 inherits this session's loopback-only discovery and ROS_DOMAIN_ID (test/conftest.py).
 """
+import contextlib
 import os
 import signal
 import subprocess
@@ -34,6 +35,17 @@ def start_node(namespace, *ros_args, executor=None):
         [sys.executable, '-m', 'tensegrity_ros.node', *options, '--ros-args',
          '--params-file', str(CONFIG), '-r', f'__ns:={namespace}', *ros_args],
         cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+@contextlib.contextmanager
+def reaped(proc):
+    """Run the block; a node process it leaves running is killed and reaped."""
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
 
 
 @pytest.fixture
@@ -75,16 +87,12 @@ def test_signal_exits_cleanly(client, executor_kind, sig):
         QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                    durability=DurabilityPolicy.TRANSIENT_LOCAL))
     proc = start_node(namespace, executor=executor_kind)
-    try:
+    with reaped(proc):
         spin_until(node, executor, lambda: states and stable, proc, 'joint_states and stable')
         assert states[-1].position[0] == 0.75
         assert stable[-1].data is True
         proc.send_signal(sig)
         out, err = proc.communicate(timeout=TIMEOUT)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
     assert proc.returncode == 0, err
     assert 'Traceback' not in err and 'Traceback' not in out, err
 
@@ -92,12 +100,8 @@ def test_signal_exits_cleanly(client, executor_kind, sig):
 def test_too_many_modules_exit_2_with_a_clear_message():
     names = ', '.join(f'm{i}' for i in range(21))
     proc = start_node(f'/proc_many_{os.getpid()}', '-p', f'modules:=[{names}]')
-    try:
+    with reaped(proc):
         out, err = proc.communicate(timeout=TIMEOUT)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
     assert proc.returncode == 2, (out, err)
     assert 'a node hosts 1 to 20 modules' in err
     assert 'Traceback' not in err + out
@@ -105,12 +109,8 @@ def test_too_many_modules_exit_2_with_a_clear_message():
 
 def test_invalid_parameter_file_value_exits_2():
     proc = start_node(f'/proc_bad_{os.getpid()}', '-p', 'm0.rho_initial:=7.5')
-    try:
+    with reaped(proc):
         out, err = proc.communicate(timeout=TIMEOUT)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
     assert proc.returncode == 2, (out, err)
     assert 'rho_initial' in err
     assert 'Traceback' not in err + out
@@ -132,7 +132,7 @@ def test_process_serves_topics_services_and_parameters(client, executor_kind):
     reset = node.create_client(Trigger, f'{namespace}/reset')
     params = AsyncParameterClient(node, f'{namespace}/tensegrity')
     proc = start_node(namespace, executor=executor_kind)
-    try:
+    with reaped(proc):
         spin_until(node, executor, lambda: states and pub.get_subscription_count() > 0, proc,
                    'discovery')
         pub.publish(Float64(data=0.9))
@@ -151,10 +151,6 @@ def test_process_serves_topics_services_and_parameters(client, executor_kind):
         spin_until(node, executor, lambda: states[-1].position[0] == 0.75, proc, 'rho 0.75')
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=TIMEOUT)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
     assert proc.returncode == 0, err
     assert 'Traceback' not in err, err
 
@@ -184,7 +180,7 @@ def test_signal_at_any_time_during_start_up_exits_cleanly(sig):
     """
     for delay in (0.0, 0.15, 0.3, 0.6):
         proc = start_node(f'/proc_early_{sig.name.lower()}_{os.getpid()}')
-        try:
+        with reaped(proc):
             deadline = time.monotonic() + TIMEOUT
             while not handles_sigterm(proc.pid) and proc.poll() is None:
                 assert time.monotonic() < deadline, 'the node never installed its handlers'
@@ -195,9 +191,5 @@ def test_signal_at_any_time_during_start_up_exits_cleanly(sig):
                 pass
             proc.send_signal(sig)
             out, err = proc.communicate(timeout=TIMEOUT)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.communicate()
         assert proc.returncode == 0, (delay, err)
         assert 'Traceback' not in err, (delay, err)

@@ -824,10 +824,11 @@ def _batch_block(v, g):
     physical = _reduced_coefficients(v['rho'], v['L1'], v['L2'], v['ka'], v['kb'], v['kc'],
                                      v['f3x'], f3y_total, v['f4x'], f4y_total)
     # solved in exactly rescaled constants (see _normalized); Hessians need the physical ones
-    shift = np.frexp(_scale(*physical))[1]
+    physical_scale = _scale(*physical)
+    shift = np.frexp(physical_scale)[1]
     consts = tuple(np.ldexp(c, -shift) for c in physical)
     n = consts[0].size
-    scale = _scale(*consts)
+    scale = np.ldexp(physical_scale, -shift)              # exact, as for the constants
     laurent = _polynomial(*consts)                                # (n, 7), z^3 .. z^-3
     continuum = np.max(np.abs(laurent), axis=-1) <= CONTINUUM_TOL * scale ** 4
     t1, near_circle = _batch_circle_roots(laurent, continuum)     # (n, 6), nan if off circle
@@ -1048,17 +1049,17 @@ def _batch_arrays(**values):
     for (name, _), arr in zip(values.items(), arrays):
         arr = arr.ravel()
         bad = ~(np.abs(arr) <= _module.MAX_MAGNITUDE)              # also nan and inf
-        if name in ('rho', 'L1', 'L2', 'ka', 'kb', 'kc'):
+        rule = f'finite, at most {_module.MAX_MAGNITUDE:g} in magnitude'
+        if name in _module._POSITIVE:
             bad |= ~(arr >= _module.MIN_MAGNITUDE)
-        elif name in ('m1', 'm2'):
+            rule += f', at least {_module.MIN_MAGNITUDE:g}'
+        elif name in _module._NON_NEGATIVE:
             bad |= ~(arr >= 0)
+            rule += ', non-negative'
         if np.any(bad):
             index = int(np.argmax(bad))
             raise InvalidParameterError(
-                f'{name} has an invalid value {arr[index]!r} at index {index} (finite, '
-                f'at most {_module.MAX_MAGNITUDE:g} in magnitude'
-                + (f', lengths and stiffnesses at least {_module.MIN_MAGNITUDE:g})'
-                   if name in ('rho', 'L1', 'L2', 'ka', 'kb', 'kc') else ')'))
+                f'{name} has an invalid value {arr[index]!r} at index {index} ({rule})')
         out[name] = arr
     return out
 

@@ -25,6 +25,7 @@ from .continuation import TrackingError
 from .events import JumpAhead, Outcome, TrackingFailure
 from .mechanisms import make_jump, mechanism_for
 from .module import InvalidParameterError, ModuleParams
+from .start_state import start_state
 from .tracking import ModuleJump
 
 #: A published state must have lambda_min > this * |lambda_max| (a verified minimum).
@@ -247,22 +248,19 @@ class Simulator:
                             for i, slot in enumerate(self._slots) if slot.target is not None])
 
     def reset(self, modules, initial_theta):
-        """Start over: settle ``modules`` from ``initial_theta`` (one [t1, t2] per module);
-        motion, jumps and tracking status are cleared.  Refused (state unchanged) if no
+        """Start over: settle ``modules`` from ``initial_theta`` (one [t1, t2] per module;
+        None: the default start, see :func:`.start_state.start_state`); motion, jumps and
+        tracking status are cleared.  Refused (state unchanged) if no
         stable equilibrium is reached."""
         modules = tuple(modules)
         if len(modules) != len(self._slots):
             raise ValueError(f'{len(modules)} modules given, the simulator has '
                              f'{len(self._slots)}')
         try:
-            state = self._mechanism.settle(modules, [list(t) for t in initial_theta])
+            state = start_state(modules, initial_theta)
         except SOLVER_ERRORS as exc:
             return ev.refused(ev.PARAMETER_VALUE,
                               f'no stable equilibrium from initial_theta: {exc}')
-        if not state.stable:
-            return ev.refused(ev.PARAMETER_VALUE, 'no stable equilibrium from initial_theta: '
-                                                  'settled on a state that is not a stable '
-                                                  'equilibrium')
         self._set_state(modules, state)
         self.jumps_total = 0
         for slot in self._slots:

@@ -16,7 +16,7 @@ Times are integer nanoseconds (as ROS clocks give them), so elapsed times are ex
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -199,7 +199,9 @@ class Simulator:
         else:
             moved = ev.combined(self._retarget(i, rho, now_ns, cause)
                                 for i, rho in targets.items())
-        return replace(moved, events=warnings + moved.events)
+        if warnings:
+            moved = Outcome(status=moved.status, events=warnings + moved.events)
+        return moved
 
     def set_force(self, index, node, force, now_ns, cause=None):
         """Force (fx, fy) at node ``'a3'`` or ``'a4'`` of a module (N, base frame)."""
@@ -342,7 +344,7 @@ class Simulator:
             failed = self._failed(trigger, f'{cause}: stopped at {self.names[trigger]} '
                                            f'rho={self.modules[trigger].rho!r}: '
                                            f'{motion.message}')
-            return replace(failed, events=jumps + failed.events)
+            return Outcome(status=ev.FAILED, events=jumps + failed.events)
         for slot in self._slots:
             slot.tracking = 'ok'
         return Outcome(events=jumps)

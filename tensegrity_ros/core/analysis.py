@@ -68,8 +68,9 @@ from scipy import linalg as sla
 from scipy.optimize import root
 
 from .module import ModuleParams, InvalidParameterError
-from .equilibria import (equilibria, equilibria_batch, hessian_eigenvalues,
-                         DEGENERACY_TOL)
+from .batch_solver import equilibria_batch
+from .classification import DEGENERACY_TOL, hessian_eigenvalues
+from .polynomial_solver import equilibria
 
 __all__ = [
     'Curve', 'degenerate_curves', 'RangeEnd', 'OperationRange', 'operation_range',

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from .equilibria import equilibria
+from .polynomial_solver import equilibria
 from .mechanisms import mechanism_for
 
 

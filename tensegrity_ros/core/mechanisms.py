@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .analysis import operation_range
+from .operation_range import operation_range
 from .polynomial_solver import equilibria
 from .events import Jump
 from .module import node_positions

@@ -83,7 +83,7 @@ def test_core_imports_only_core_the_standard_library_numpy_scipy():
             (name, outside)
 
 
-@pytest.mark.parametrize('tool', ['figures', 'problem', 'params_file'])
+@pytest.mark.parametrize('tool', ['figures', 'problem', 'params_file', 'module_parameters'])
 def test_offline_tools_never_import_the_command_line_or_ros(tool):
     inside, outside = GRAPH[f'tensegrity_ros.{tool}']
     assert 'tensegrity_ros.cli' not in inside

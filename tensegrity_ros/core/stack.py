@@ -29,11 +29,11 @@ from __future__ import annotations
 import cmath
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg.lapack import (dgeqrf as _dgeqrf, dgesv as _dgesv, dorgqr as _dorgqr,
-                                 dsygv as _dsygv)
+from scipy.linalg.lapack import (dgeqrf as _dgeqrf, dgesv as _dgesv, dgetrf as _dgetrf,
+                                 dgetrs as _dgetrs, dorgqr as _dorgqr, dsygv as _dsygv)
 from scipy.optimize import root
 
 from . import continuation as _continuation
@@ -85,7 +85,13 @@ class Stack:
         return len(self.modules)
 
     def vector(self):
-        return np.concatenate([m.vector() for m in self.modules])
+        """The parameters of every module (N x 12, flattened; a fresh copy)."""
+        return self._vector.copy()
+
+    @functools.cached_property
+    def _vector(self):
+        return np.array([[getattr(m, name) for name in PARAMETER_NAMES]
+                         for m in self.modules], dtype=float).ravel()
 
     def from_vector(self, values):
         values = np.asarray(values, dtype=float).reshape(len(self), len(PARAMETER_NAMES))
@@ -147,6 +153,7 @@ class _Topology:
         self.chord_rods = self.element_rods[len(springs):]
         self.n_springs = len(springs)
         self.mobility = rods[_FIXED:].T @ rods[_FIXED:]   # moving nodes shared by two rods
+        self.angle_mask = np.concatenate([np.ones(self.n_rods), np.zeros(self.n_chords)])
         # loads: complex node forces = (forces + g * weights) @ parameters
         forces = np.zeros((self.nodes, n * len(PARAMETER_NAMES)), dtype=complex)
         weights = np.zeros((self.nodes, n * len(PARAMETER_NAMES)))
@@ -160,6 +167,20 @@ class _Topology:
             for node in (a2(i), a4(i)):
                 weights[node, index(i, 'm2')] -= 0.5
         self.load_forces, self.load_weights = forces, 1j * weights
+        self._load_maps = {}
+
+    def load_map(self, g):
+        """Complex node forces per parameter (nodes x 12N) under gravity g."""
+        return self.load_forces + g * self.load_weights
+
+    def load_maps(self, g):
+        """Per parameter under gravity g: the loads carried by every rod vector (2N x 12N,
+        complex) and the x load carried by A2(0) (12N,)."""
+        found = self._load_maps.get(g)
+        if found is None:
+            nodes = self.load_map(g)
+            found = self._load_maps[g] = (self.node_rods.T @ nodes, self.node_base @ nodes.real)
+        return found
 
 
 @functools.lru_cache(maxsize=32)
@@ -189,23 +210,38 @@ def _solve(matrix, rhs):
 
 
 class _Values:
-    """The path's parameters at one s (everything linear in s)."""
+    """The path's parameters at one s, or their rates along s (all linear in the
+    parameter vector, so the values at s are those at 0 plus s times the rates)."""
 
-    __slots__ = ('s', 'k', 'chord', 'rod', 'rod_loads', 'base_load', 'rho0', 'shift', 'weights')
+    _LINEAR = ('k', 'chord', 'rod', 'rod_loads', 'base_load', 'rho0', 'shift', 'weights')
+    __slots__ = ('s', 'chord_squares') + _LINEAR
 
-    def __init__(self, path, s):
-        base, rate, top = path.base, path.rate, path.topology
+    @classmethod
+    def of(cls, top, g, p, s):
+        """The values of parameter vector ``p`` (N x 12, flattened)."""
+        self = cls()
         self.s = s
-        p = base + s * rate
         self.k = p[top.spring_index]
         self.chord = p[top.chord_index]
+        self.chord_squares = self.chord ** 2
         self.rod = p[top.rod_index]
         self.rho0 = float(p[top.rho0_index])
-        loads = path.load_map @ p
-        self.rod_loads = top.node_rods.T @ loads           # d(load work)/d(rod vector)
-        self.base_load = float(top.node_base @ loads.real)  # x force carried by A2(0)
+        rod_loads, base_load = top.load_maps(g)
+        self.rod_loads = rod_loads @ p                      # d(load work)/d(rod vector)
+        self.base_load = float(base_load @ p)               # x force carried by A2(0)
         self.shift = top.element_base * self.rho0
         self.weights = np.concatenate([self.k, np.zeros(top.n_chords)])
+        return self
+
+    @classmethod
+    def along(cls, zero, rate, s):
+        """zero + s * rate."""
+        self = cls()
+        self.s = s
+        for name in cls._LINEAR:
+            setattr(self, name, getattr(zero, name) + s * getattr(rate, name))
+        self.chord_squares = self.chord ** 2
+        return self
 
 
 class _Point:
@@ -214,8 +250,8 @@ class _Point:
     weights (stiffnesses, then chord multipliers / l_ref) and the generalized force
     ``force`` = dL/d(rod vector) (2N complex, x + iy)."""
 
-    __slots__ = ('key', 'values', 'mu', 'rods', 'diff', 'force', 'weights', '_hessian',
-                 '_jc', '_gram')
+    __slots__ = ('key', 'values', 'mu', 'rods', 'diff', 'squares', 'force', 'weights',
+                 '_hessian', '_jc', '_gram', 'rates')
 
     def __init__(self, path, y, key, values):
         top = path.topology
@@ -223,12 +259,13 @@ class _Point:
         self.key, self.values = key, values
         self.mu = y[n:] * path.f_ref
         self.rods = values.rod * np.exp(1j * y[:n])
-        self.diff = top.element_rods @ self.rods + values.shift
+        diff = self.diff = top.element_rods @ self.rods + values.shift
+        self.squares = diff.real ** 2 + diff.imag ** 2
         weights = values.weights.copy()
         weights[top.n_springs:] = self.mu / path.l_ref
         self.weights = weights
-        self.force = top.element_rods_t @ (weights * self.diff) - values.rod_loads
-        self._hessian = self._jc = self._gram = None
+        self.force = top.element_rods_t @ (weights * diff) - values.rod_loads
+        self._hessian = self._jc = self._gram = self.rates = None
 
     def gradient(self):
         """dL/dphi (2N,): the torque of the generalized force about every rod's base."""
@@ -254,9 +291,7 @@ class _Point:
         return self.diff[path.topology.n_springs:]
 
     def constraints(self, path):
-        chords = self.chords(path)
-        return ((chords.real ** 2 + chords.imag ** 2 - self.values.chord ** 2)
-                / (2.0 * path.l_ref))
+        return (self.squares[path.topology.n_springs:] - self.values.chord_squares) * path.half_inv_l_ref
 
     def constraint_jacobian(self, path):
         """d c / d phi ((N - 1) x 2N): chord . (i v_r) / l_ref where rod r builds the chord."""
@@ -295,29 +330,28 @@ class StackPath:
         self.p0 = start.vector()
         self.dp = end.vector() - self.p0
         self.g = start.modules[0].g
-        self.base, self.rate = self.p0, self.dp
-        self.l_ref = float(np.mean(self.p0[top.rod_index]))
+        rods = self.p0[top.rod_index]
+        self.l_ref = float(rods.sum()) / top.n_rods
         # multipliers are stored in units of f_ref, so that the state is dimensionless
-        self.f_ref = float(np.max(self.p0[top.spring_index])) * self.l_ref
-        self.load_map = top.load_forces + self.g * top.load_weights
+        self.f_ref = float(self.p0[top.spring_index].max()) * self.l_ref
+        self.half_inv_l_ref = 0.5 / self.l_ref
         # Step sizes as node displacements (in l_ref), as in node coordinates: a node is
         # moved by at most the summed lengths of the rods that build it times max |d phi|.
-        reach = float(np.max(top.node_rods @ self.p0[top.rod_index])) / self.l_ref
-        self.state_weights = np.concatenate([np.full(top.n_rods, reach), np.zeros(top.n_chords)])
-        self._rate_values = _Values(self, 1.0)
-        zero = _Values(self, 0.0)
-        for name in _Values.__slots__[1:]:
-            value = getattr(self._rate_values, name) - getattr(zero, name)
-            setattr(self._rate_values, name, value)
-        self._values = zero
+        self.state_weights = top.angle_mask * (float((top.node_rods @ rods).max()) / self.l_ref)
+        self._zero_values = _Values.of(top, self.g, self.p0, 0.0)
+        self._rate_values = _Values.of(top, self.g, self.dp, None)
+        self._values = {0.0: self._zero_values}
         self._point = None
 
     # -- parameters at s -------------------------------------------------------
     def at(self, s):
         """The parameters at s (:class:`_Values`, reused while s stays the same)."""
-        if self._values.s != s:
-            self._values = _Values(self, s)
-        return self._values
+        values = self._values.get(s)
+        if values is None:
+            if len(self._values) > 3:
+                self._values.clear()
+            values = self._values[s] = _Values.along(self._zero_values, self._rate_values, s)
+        return values
 
     def params(self, s):
         return self.start.from_vector(self.p0 + s * self.dp)
@@ -331,7 +365,7 @@ class StackPath:
 
     def loads(self, s):
         """External force on every node (nodes x 2), base frame."""
-        loads = self.load_map @ (self.base + s * self.rate)
+        loads = self.topology.load_map(self.g) @ (self.p0 + s * self.dp)
         return np.column_stack([loads.real, loads.imag])
 
     def point(self, y, s):
@@ -365,10 +399,12 @@ class StackPath:
         return out
 
     def _rates(self, p):
-        """d(rod vectors)/ds, d(element differences)/ds at fixed state."""
-        rate = self._rate_values
-        d_rods = p.rods * (rate.rod / p.values.rod)
-        return d_rods, self.topology.element_rods @ d_rods + rate.shift
+        """d(rod vectors)/ds, d(element differences)/ds at fixed state (kept in the point)."""
+        if p.rates is None:
+            rate = self._rate_values
+            d_rods = p.rods * (rate.rod / p.values.rod)
+            p.rates = d_rods, self.topology.element_rods @ d_rods + rate.shift
+        return p.rates
 
     def residual_s(self, y, s):
         """dF/ds at fixed state (analytic: parameters move linearly along the path)."""
@@ -386,7 +422,7 @@ class StackPath:
         """The Lagrangian U + mu . c (equal to U on the constraint manifold)."""
         p = self.point(y, s)
         v, ns = p.values, self.topology.n_springs
-        springs = 0.5 * float(v.k @ (p.diff[:ns].real ** 2 + p.diff[:ns].imag ** 2))
+        springs = 0.5 * float(v.k @ p.squares[:ns])
         work = float((v.rod_loads.conj() @ p.rods).real) + v.base_load * v.rho0
         return springs - work + float(p.mu @ p.constraints(self))
 
@@ -395,7 +431,7 @@ class StackPath:
         p = self.point(y, s)
         v, rate, ns = p.values, self._rate_values, self.topology.n_springs
         d_rods, d_diff = self._rates(p)
-        springs = (0.5 * float(rate.k @ (p.diff[:ns].real ** 2 + p.diff[:ns].imag ** 2))
+        springs = (0.5 * float(rate.k @ p.squares[:ns])
                    + float(p.weights @ (p.diff.conj() * d_diff).real))
         work = (float((rate.rod_loads.conj() @ p.rods + v.rod_loads.conj() @ d_rods).real)
                 + rate.base_load * v.rho0 + v.base_load * rate.rho0)
@@ -572,6 +608,9 @@ class StackEquilibrium:
     state: np.ndarray
     head_position: np.ndarray
     head_angle: float
+    #: The stack parameter vector (bytes) this state was verified at, so that tracking
+    #: from it can reuse ``eigenvalues``.
+    parameters: bytes = field(default=None, repr=False, compare=False)
 
     @property
     def stable(self):
@@ -583,13 +622,18 @@ class StackEquilibrium:
         return float(self.eigenvalues[0])
 
 
-def _record(path, y, s):
-    head_position, head_angle = path.head_pose(y, s)
+def _record(path, y, s, eigenvalues=None, energy=None):
+    nodes = path.nodes(y, s)
+    top = path.topology
+    a3, a4 = nodes[top.a3(path.n - 1)], nodes[top.a4(path.n - 1)]
+    head = a3 - a4
     return StackEquilibrium(
-        theta=path.angles(y, s), nodes=path.nodes(y, s), eigenvalues=path.eigenvalues(y, s),
-        energy=path.energy(y, s), actuator_forces=path.actuator_forces(y, s),
+        theta=path.angles(y, s), nodes=nodes,
+        eigenvalues=path.eigenvalues(y, s) if eigenvalues is None else eigenvalues,
+        energy=path.energy(y, s) if energy is None else energy, actuator_forces=path.actuator_forces(y, s),
         residual=float(np.max(np.abs(path.residual(y, s)))), state=np.array(y),
-        head_position=head_position, head_angle=head_angle)
+        head_position=0.5 * (a3 + a4), head_angle=math.atan2(head[1], head[0]),
+        parameters=(path.p0 + s * path.dp).tobytes())
 
 
 def stack_equilibrium_at(stack: Stack, state) -> StackEquilibrium:
@@ -619,6 +663,82 @@ class StackTrack:
     status: str = 'ok'
     message: str = ''
     steps: int = 0
+
+
+def _inf_norm(v):
+    return float(np.abs(v).max()) if len(v) else 0.0
+
+
+def _newton(path, y, s, tol, iterations):
+    """The tracker's corrector (Newton while it contracts, to rounding level; ``None``
+    unless the residual ends within ``tol``), with the Jacobian of the first iterate
+    kept (LU factors reused): on a small step the iterates move by ~1e-6, so the
+    contraction stays fast and the end point is the same to rounding."""
+    previous = math.inf
+    f = path.residual(y, s)
+    lu, pivots, info = _dgetrf(path.jacobian(y, s))
+    if info != 0:
+        return None
+    for _ in range(iterations):
+        delta, _ = _dgetrs(lu, pivots, f)
+        size = _inf_norm(delta)
+        if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
+            break
+        y = y - delta
+        f = path.residual(y, s)
+        previous = size
+        if size <= 1e-14 * (1.0 + _inf_norm(y)):
+            break
+    return y if _inf_norm(f) <= tol else None
+
+
+def _whole_command_step(path, y, settings, eigenvalues=None):
+    """The tracker's first step when it spans the whole command: (state, eigenvalues) at
+    s = 1, or ``None`` wherever the tracker would do anything else.
+
+    A small command is one continuation step, verified exactly as the tracker verifies
+    a step (:func:`~.continuation.track`): a stable equilibrium at s = 0; the step within
+    ``max_state_step`` and within the eigenvalue-halving bound from d lambda_min / ds;
+    Newton contracting to a point near the prediction; the energy change matching the
+    envelope theorem; the reduced Hessian positive definite at s = 1.  Anything else (a
+    longer command, a soft mode, an event) returns ``None`` and the tracker runs in
+    full.  This is the same work without the tracker's generality (no step loop,
+    no second Newton at s = 0, no re-evaluation of what is already known)."""
+    cfg = settings
+    if eigenvalues is None:
+        eigenvalues = path.eigenvalues(y, 0.0)
+    scale = max(abs(eigenvalues[-1]), 1e-300)
+    floor = scale * 1e-3
+
+    def definite(values):
+        return values[0] > cfg.definiteness_tol * max(abs(values[-1]), floor)
+
+    tol = cfg.residual_tol * scale
+    weights = path.state_weights
+    if not definite(eigenvalues) or _inf_norm(path.residual(y, 0.0)) > tol:
+        return None
+    try:
+        tangent = -_solve(path.jacobian(y, 0.0), path.residual_s(y, 0.0))
+    except np.linalg.LinAlgError:
+        return None
+    reach = _inf_norm(weights * tangent)
+    if not reach <= cfg.max_state_step:
+        return None
+    h = 1e-6                                  # the tracker's d lambda_min / ds
+    rate = (path.eigenvalues(y + h * tangent, h)[0] - eigenvalues[0]) / h
+    if rate < 0.0 and (1.0 - cfg.eigenvalue_shrink) * eigenvalues[0] < -rate:
+        return None
+    energy0, energy_s0 = path.energy(y, 0.0), path.energy_s(y, 0.0)
+    predicted = y + tangent
+    y1 = _newton(path, predicted, 1.0, tol, cfg.newton_iterations)
+    if y1 is None or _inf_norm(weights * (y1 - predicted)) > 0.5 * reach + 1e-9:
+        return None
+    energy1, energy_s1 = path.energy(y1, 1.0), path.energy_s(y1, 1.0)
+    slack = 1e-9 * (abs(energy0) + abs(energy1) + scale) + 0.5 * abs(energy_s1 - energy_s0)
+    if abs((energy1 - energy0) - 0.5 * (energy_s0 + energy_s1)) > slack:
+        return None
+    eigenvalues1 = path.eigenvalues(y1, 1.0)
+    return (y1, eigenvalues1, energy1) if definite(eigenvalues1) else None
 
 
 def _checked_angles(theta, n):
@@ -651,6 +771,13 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
         arr = np.asarray(state_or_theta, dtype=float)
         y0 = arr if arr.shape == (path.size,) else path.state_from_angles(
             _checked_angles(arr, len(start)), 0.0)
+    known = (state_or_theta.eigenvalues if isinstance(state_or_theta, StackEquilibrium)
+             and state_or_theta.parameters == path.p0.tobytes() else None)
+    quick = _whole_command_step(path, y0, settings, known)
+    if quick is not None:
+        y1, eigenvalues1, energy1 = quick
+        return StackTrack(final=_record(path, y1, 1.0, eigenvalues1, energy1), end=end,
+                          jumps=(), steps=1)
     try:
         result = _continuation.track(path, y0, settings)
     except _continuation.TrackingError:

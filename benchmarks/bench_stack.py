@@ -28,7 +28,7 @@ os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 SIZES = (1, 2, 3, 5, 10)
 COMMANDS = 50
-REPEAT = 3
+REPEAT = int(os.environ.get("BENCH_REPEAT", 3))
 STEP = 1e-3           # m, one module's rho per command
 TARGET_MS = 5.0       # N = 10
 

@@ -153,6 +153,7 @@ class _Topology:
         self.chord_rods = self.element_rods[len(springs):]
         self.n_springs = len(springs)
         self.mobility = rods[_FIXED:].T @ rods[_FIXED:]   # moving nodes shared by two rods
+        self.identity = np.eye(self.n_rods)
         self.angle_mask = np.concatenate([np.ones(self.n_rods), np.zeros(self.n_chords)])
         # loads: complex node forces = (forces + g * weights) @ parameters
         forces = np.zeros((self.nodes, n * len(PARAMETER_NAMES)), dtype=complex)
@@ -426,6 +427,10 @@ class StackPath:
         work = float((v.rod_loads.conj() @ p.rods).real) + v.base_load * v.rho0
         return springs - work + float(p.mu @ p.constraints(self))
 
+    def energy_and_rate(self, y, s):
+        """(energy, energy_s) at one point, sharing their terms."""
+        return self.energy(y, s), self.energy_s(y, s)
+
     def energy_s(self, y, s):
         """dL/ds at fixed state (the envelope theorem's side of the tracker's energy check)."""
         p = self.point(y, s)
@@ -440,6 +445,8 @@ class StackPath:
     def _reduced(self, y, s):
         """(reduced Hessian, reduced metric, null basis Z, point) on the tangent space."""
         p = self.point(y, s)
+        if not self.topology.n_chords:
+            return p.hessian(self), p.metric(self), self.topology.identity, p
         z = _null_basis(p.constraint_jacobian(self))
         zt = z.T
         return zt @ p.hessian(self) @ z, zt @ p.metric(self) @ z, z, p
@@ -622,7 +629,7 @@ class StackEquilibrium:
         return float(self.eigenvalues[0])
 
 
-def _record(path, y, s, eigenvalues=None, energy=None):
+def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
     nodes = path.nodes(y, s)
     top = path.topology
     a3, a4 = nodes[top.a3(path.n - 1)], nodes[top.a4(path.n - 1)]
@@ -631,7 +638,8 @@ def _record(path, y, s, eigenvalues=None, energy=None):
         theta=path.angles(y, s), nodes=nodes,
         eigenvalues=path.eigenvalues(y, s) if eigenvalues is None else eigenvalues,
         energy=path.energy(y, s) if energy is None else energy, actuator_forces=path.actuator_forces(y, s),
-        residual=float(np.max(np.abs(path.residual(y, s)))), state=np.array(y),
+        residual=float(np.max(np.abs(path.residual(y, s)))) if residual is None else residual,
+        state=np.array(y),
         head_position=0.5 * (a3 + a4), head_angle=math.atan2(head[1], head[0]),
         parameters=(path.p0 + s * path.dp).tobytes())
 
@@ -681,15 +689,16 @@ def _newton(path, y, s, tol, iterations):
         return None
     for _ in range(iterations):
         delta, _ = _dgetrs(lu, pivots, f)
-        size = _inf_norm(delta)
+        size = float(np.abs(delta).max())
         if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
             break
         y = y - delta
         f = path.residual(y, s)
         previous = size
-        if size <= 1e-14 * (1.0 + _inf_norm(y)):
+        if size <= 1e-14 * (1.0 + float(np.abs(y).max())):
             break
-    return y if _inf_norm(f) <= tol else None
+    residual = float(np.abs(f).max())
+    return (y, residual) if residual <= tol else (None, residual)
 
 
 def _whole_command_step(path, y, settings, eigenvalues=None):
@@ -728,17 +737,17 @@ def _whole_command_step(path, y, settings, eigenvalues=None):
     rate = (path.eigenvalues(y + h * tangent, h)[0] - eigenvalues[0]) / h
     if rate < 0.0 and (1.0 - cfg.eigenvalue_shrink) * eigenvalues[0] < -rate:
         return None
-    energy0, energy_s0 = path.energy(y, 0.0), path.energy_s(y, 0.0)
+    energy0, energy_s0 = path.energy_and_rate(y, 0.0)
     predicted = y + tangent
-    y1 = _newton(path, predicted, 1.0, tol, cfg.newton_iterations)
+    y1, residual = _newton(path, predicted, 1.0, tol, cfg.newton_iterations)
     if y1 is None or _inf_norm(weights * (y1 - predicted)) > 0.5 * reach + 1e-9:
         return None
-    energy1, energy_s1 = path.energy(y1, 1.0), path.energy_s(y1, 1.0)
+    energy1, energy_s1 = path.energy_and_rate(y1, 1.0)
     slack = 1e-9 * (abs(energy0) + abs(energy1) + scale) + 0.5 * abs(energy_s1 - energy_s0)
     if abs((energy1 - energy0) - 0.5 * (energy_s0 + energy_s1)) > slack:
         return None
     eigenvalues1 = path.eigenvalues(y1, 1.0)
-    return (y1, eigenvalues1, energy1) if definite(eigenvalues1) else None
+    return (y1, eigenvalues1, energy1, residual) if definite(eigenvalues1) else None
 
 
 def _checked_angles(theta, n):
@@ -775,9 +784,8 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
              and state_or_theta.parameters == path.p0.tobytes() else None)
     quick = _whole_command_step(path, y0, settings, known)
     if quick is not None:
-        y1, eigenvalues1, energy1 = quick
-        return StackTrack(final=_record(path, y1, 1.0, eigenvalues1, energy1), end=end,
-                          jumps=(), steps=1)
+        return StackTrack(final=_record(path, quick[0], 1.0, *quick[1:]), end=end, jumps=(),
+                          steps=1)
     try:
         result = _continuation.track(path, y0, settings)
     except _continuation.TrackingError:

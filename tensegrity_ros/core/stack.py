@@ -214,8 +214,8 @@ class _Values:
     """The path's parameters at one s, or their rates along s (all linear in the
     parameter vector, so the values at s are those at 0 plus s times the rates)."""
 
-    _LINEAR = ('k', 'chord', 'rod', 'rod_loads', 'base_load', 'rho0', 'shift', 'weights')
-    __slots__ = ('s', 'chord_squares') + _LINEAR
+    __slots__ = ('s', 'k', 'chord', 'chord_squares', 'rod', 'rod_loads', 'base_load', 'rho0',
+                 'shift', 'weights')
 
     @classmethod
     def of(cls, top, g, p, s):
@@ -239,9 +239,15 @@ class _Values:
         """zero + s * rate."""
         self = cls()
         self.s = s
-        for name in cls._LINEAR:
-            setattr(self, name, getattr(zero, name) + s * getattr(rate, name))
+        self.k = zero.k + s * rate.k
+        self.chord = zero.chord + s * rate.chord
         self.chord_squares = self.chord ** 2
+        self.rod = zero.rod + s * rate.rod
+        self.rod_loads = zero.rod_loads + s * rate.rod_loads
+        self.base_load = zero.base_load + s * rate.base_load
+        self.rho0 = zero.rho0 + s * rate.rho0
+        self.shift = zero.shift + s * rate.shift
+        self.weights = zero.weights + s * rate.weights
         return self
 
 
@@ -261,10 +267,10 @@ class _Point:
         self.mu = y[n:] * path.f_ref
         self.rods = values.rod * np.exp(1j * y[:n])
         diff = self.diff = top.element_rods @ self.rods + values.shift
-        self.squares = diff.real ** 2 + diff.imag ** 2
-        weights = values.weights.copy()
-        weights[top.n_springs:] = self.mu / path.l_ref
-        self.weights = weights
+        squares = self.squares = np.abs(diff)
+        squares *= squares
+        weights = self.weights = values.weights.copy()
+        weights[top.n_springs:] = y[n:] * path.f_ref_per_l_ref
         self.force = top.element_rods_t @ (weights * diff) - values.rod_loads
         self._hessian = self._jc = self._gram = self.rates = None
 
@@ -276,7 +282,8 @@ class _Point:
     def gram(self):
         """v_r . v_q (2N x 2N), also the dot products of the rods' angular velocities."""
         if self._gram is None:
-            self._gram = np.outer(self.rods, self.rods.conj()).real
+            rods = self.rods
+            self._gram = (rods[:, None] * rods.conj()).real
         return self._gram
 
     def hessian(self, path):
@@ -299,7 +306,7 @@ class _Point:
         if self._jc is None:
             chords = self.chords(path)
             self._jc = path.topology.chord_rods * (
-                np.outer(chords.conj(), self.rods).imag / -path.l_ref)
+                (chords.conj()[:, None] * self.rods).imag * -path.inv_l_ref)
         return self._jc
 
     def metric(self, path):
@@ -336,6 +343,8 @@ class StackPath:
         # multipliers are stored in units of f_ref, so that the state is dimensionless
         self.f_ref = float(self.p0[top.spring_index].max()) * self.l_ref
         self.half_inv_l_ref = 0.5 / self.l_ref
+        self.f_ref_per_l_ref = self.f_ref / self.l_ref
+        self.inv_l_ref = 1.0 / self.l_ref
         # Step sizes as node displacements (in l_ref), as in node coordinates: a node is
         # moved by at most the summed lengths of the rods that build it times max |d phi|.
         self.state_weights = top.angle_mask * (float((top.node_rods @ rods).max()) / self.l_ref)
@@ -681,7 +690,9 @@ def _newton(path, y, s, tol, iterations):
     """The tracker's corrector (Newton while it contracts, to rounding level; ``None``
     unless the residual ends within ``tol``), with the Jacobian of the first iterate
     kept (LU factors reused): on a small step the iterates move by ~1e-6, so the
-    contraction stays fast and the end point is the same to rounding."""
+    contraction stays fast.  An update at rounding level is not applied (the point
+    is converged; its residual is already known), so the answer is the tracker's to
+    rounding with one evaluation less."""
     previous = math.inf
     f = path.residual(y, s)
     lu, pivots, info = _dgetrf(path.jacobian(y, s))
@@ -692,11 +703,11 @@ def _newton(path, y, s, tol, iterations):
         size = float(np.abs(delta).max())
         if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
             break
+        if size <= 1e-14 * (1.0 + float(np.abs(y).max())):
+            break
         y = y - delta
         f = path.residual(y, s)
         previous = size
-        if size <= 1e-14 * (1.0 + float(np.abs(y).max())):
-            break
     residual = float(np.abs(f).max())
     return (y, residual) if residual <= tol else (None, residual)
 
@@ -733,11 +744,11 @@ def _whole_command_step(path, y, settings, eigenvalues=None):
     reach = _inf_norm(weights * tangent)
     if not reach <= cfg.max_state_step:
         return None
+    energy0, energy_s0 = path.energy_and_rate(y, 0.0)
     h = 1e-6                                  # the tracker's d lambda_min / ds
     rate = (path.eigenvalues(y + h * tangent, h)[0] - eigenvalues[0]) / h
     if rate < 0.0 and (1.0 - cfg.eigenvalue_shrink) * eigenvalues[0] < -rate:
         return None
-    energy0, energy_s0 = path.energy_and_rate(y, 0.0)
     predicted = y + tangent
     y1, residual = _newton(path, predicted, 1.0, tol, cfg.newton_iterations)
     if y1 is None or _inf_norm(weights * (y1 - predicted)) > 0.5 * reach + 1e-9:

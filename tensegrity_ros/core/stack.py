@@ -235,6 +235,24 @@ class _Values:
         return self
 
     @classmethod
+    def of_stack(cls, stack, top):
+        """The values of ``stack``, kept on it (a node's end stack is the next start)."""
+        found = stack.__dict__.get('_path_values')     # frozen dataclass: not a field
+        if found is None:
+            found = stack.__dict__['_path_values'] = cls.of(top, stack.modules[0].g,
+                                                            stack._vector, None)
+        return found
+
+    @classmethod
+    def difference(cls, one, zero):
+        """one - zero: the rates along s of a straight path."""
+        self = cls()
+        self.s = None
+        for name in cls.__slots__[1:]:
+            setattr(self, name, getattr(one, name) - getattr(zero, name))
+        return self
+
+    @classmethod
     def along(cls, zero, rate, s):
         """zero + s * rate."""
         self = cls()
@@ -348,9 +366,10 @@ class StackPath:
         # Step sizes as node displacements (in l_ref), as in node coordinates: a node is
         # moved by at most the summed lengths of the rods that build it times max |d phi|.
         self.state_weights = top.angle_mask * (float((top.node_rods @ rods).max()) / self.l_ref)
-        self._zero_values = _Values.of(top, self.g, self.p0, 0.0)
-        self._rate_values = _Values.of(top, self.g, self.dp, None)
-        self._values = {0.0: self._zero_values}
+        zero, one = _Values.of_stack(start, top), _Values.of_stack(end, top)
+        self._zero_values = zero
+        self._rate_values = _Values.difference(one, zero)
+        self._values = {0.0: zero, 1.0: one}
         self._point = None
 
     # -- parameters at s -------------------------------------------------------
@@ -362,6 +381,10 @@ class StackPath:
                 self._values.clear()
             values = self._values[s] = _Values.along(self._zero_values, self._rate_values, s)
         return values
+
+    def parameter_vector(self, s):
+        """The stack parameters at s (N x 12, flattened), exactly the end's at s = 1."""
+        return self.end._vector if s == 1.0 else self.p0 + s * self.dp
 
     def params(self, s):
         return self.start.from_vector(self.p0 + s * self.dp)
@@ -650,7 +673,7 @@ def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
         residual=float(np.max(np.abs(path.residual(y, s)))) if residual is None else residual,
         state=np.array(y),
         head_position=0.5 * (a3 + a4), head_angle=math.atan2(head[1], head[0]),
-        parameters=(path.p0 + s * path.dp).tobytes())
+        parameters=path.parameter_vector(s).tobytes())
 
 
 def stack_equilibrium_at(stack: Stack, state) -> StackEquilibrium:
@@ -712,7 +735,7 @@ def _newton(path, y, s, tol, iterations):
     return (y, residual) if residual <= tol else (None, residual)
 
 
-def _whole_command_step(path, y, settings, eigenvalues=None):
+def _whole_command_step(path, y, settings, known=None):
     """The tracker's first step when it spans the whole command: (state, eigenvalues) at
     s = 1, or ``None`` wherever the tracker would do anything else.
 
@@ -723,10 +746,11 @@ def _whole_command_step(path, y, settings, eigenvalues=None):
     envelope theorem; the reduced Hessian positive definite at s = 1.  Anything else (a
     longer command, a soft mode, an event) returns ``None`` and the tracker runs in
     full.  This is the same work without the tracker's generality (no step loop,
-    no second Newton at s = 0, no re-evaluation of what is already known)."""
+    no second Newton at s = 0, no re-evaluation of what is already known: ``known`` is
+    the :class:`StackEquilibrium` of ``y`` when it was verified at the start parameters,
+    whose eigenvalues, residual and energy are those at s = 0)."""
     cfg = settings
-    if eigenvalues is None:
-        eigenvalues = path.eigenvalues(y, 0.0)
+    eigenvalues = path.eigenvalues(y, 0.0) if known is None else known.eigenvalues
     scale = max(abs(eigenvalues[-1]), 1e-300)
     floor = scale * 1e-3
 
@@ -735,7 +759,8 @@ def _whole_command_step(path, y, settings, eigenvalues=None):
 
     tol = cfg.residual_tol * scale
     weights = path.state_weights
-    if not definite(eigenvalues) or _inf_norm(path.residual(y, 0.0)) > tol:
+    residual0 = _inf_norm(path.residual(y, 0.0)) if known is None else known.residual
+    if not definite(eigenvalues) or residual0 > tol:
         return None
     try:
         tangent = -_solve(path.jacobian(y, 0.0), path.residual_s(y, 0.0))
@@ -744,7 +769,8 @@ def _whole_command_step(path, y, settings, eigenvalues=None):
     reach = _inf_norm(weights * tangent)
     if not reach <= cfg.max_state_step:
         return None
-    energy0, energy_s0 = path.energy_and_rate(y, 0.0)
+    energy0 = path.energy(y, 0.0) if known is None else known.energy
+    energy_s0 = path.energy_s(y, 0.0)
     h = 1e-6                                  # the tracker's d lambda_min / ds
     rate = (path.eigenvalues(y + h * tangent, h)[0] - eigenvalues[0]) / h
     if rate < 0.0 and (1.0 - cfg.eigenvalue_shrink) * eigenvalues[0] < -rate:
@@ -791,7 +817,7 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
         arr = np.asarray(state_or_theta, dtype=float)
         y0 = arr if arr.shape == (path.size,) else path.state_from_angles(
             _checked_angles(arr, len(start)), 0.0)
-    known = (state_or_theta.eigenvalues if isinstance(state_or_theta, StackEquilibrium)
+    known = (state_or_theta if isinstance(state_or_theta, StackEquilibrium)
              and state_or_theta.parameters == path.p0.tobytes() else None)
     quick = _whole_command_step(path, y0, settings, known)
     if quick is not None:

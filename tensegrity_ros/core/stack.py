@@ -706,7 +706,9 @@ class StackTrack:
 
 
 def _inf_norm(v):
-    return float(np.abs(v).max()) if len(v) else 0.0
+    """max |v_i| (0 for an empty vector); in Python, cheaper than numpy for a few entries
+    (it may miss a NaN: every step that matters ends with a numpy residual test)."""
+    return max(map(abs, v.tolist()), default=0.0)
 
 
 def _newton(path, y, s, tol, iterations):
@@ -723,15 +725,15 @@ def _newton(path, y, s, tol, iterations):
         return None
     for _ in range(iterations):
         delta, _ = _dgetrs(lu, pivots, f)
-        size = float(np.abs(delta).max())
+        size = _inf_norm(delta)
         if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
             break
-        if size <= 1e-14 * (1.0 + float(np.abs(y).max())):
+        if size <= 1e-14 * (1.0 + _inf_norm(y)):
             break
         y = y - delta
         f = path.residual(y, s)
         previous = size
-    residual = float(np.abs(f).max())
+    residual = float(np.abs(f).max())          # numpy: a NaN anywhere fails the test
     return (y, residual) if residual <= tol else (None, residual)
 
 

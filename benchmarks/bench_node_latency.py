@@ -308,5 +308,158 @@ def main(argv=None):
     return 1 if (args.strict and not ok) else 0
 
 
+
+# -- the neck case (issue 14): config/neck.yaml driven by joint_commands -----------------
+
+NECK_CONFIG = ROOT / 'config' / 'neck.yaml'
+NECK_MODULES = ('m0', 'm1', 'm2')
+NECK_RHO = (0.09, 0.085, 0.08)         # rho_initial of config/neck.yaml (m)
+NECK_AMPLITUDE = 2e-3                  # m: small moves on the upright branch, no jump
+NECK_PERIOD = 1000                     # commands per sine period
+
+
+def run_neck_relay():
+    """The bare relay for the neck: joint_commands in, joint_states (nine joints) out."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.node import Node
+    from sensor_msgs.msg import JointState
+
+    names = [f'{m}_{j}' for m in NECK_MODULES for j in ('rho', 'theta1', 'theta2')]
+
+    class NeckRelay(Node):
+        def __init__(self):
+            super().__init__('relay')
+            command_qos, state_qos = _qos()
+            self.pub = self.create_publisher(JointState, 'joint_states', state_qos)
+            self.create_subscription(JointState, 'joint_commands', self.on_cmd, command_qos)
+
+        def on_cmd(self, msg):
+            rho = dict(zip(msg.name, msg.position))
+            position = [v for m in NECK_MODULES for v in (rho.get(f'{m}_rho', 0.0), 0.0, 0.0)]
+            out = JointState(name=names, position=position, effort=[0.0] * len(names))
+            out.header.stamp = self.get_clock().now().to_msg()
+            self.pub.publish(out)
+
+    rclpy.init()
+    node = None
+    try:
+        node = NeckRelay()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+class NeckDriver(Driver):
+    """The driver with joint_commands (three m*_rho targets) instead of m0/rho_cmd; a
+    command is identified by its m0_rho value, the first entry of joint_states."""
+
+    def __init__(self, targets):
+        super().__init__(targets)
+        from sensor_msgs.msg import JointState
+        self.JointState = JointState
+        command_qos, _ = _qos()
+        for pub in self.pubs.values():
+            self.node.destroy_publisher(pub)
+        self.pubs = {t: self.node.create_publisher(JointState, f'/{t}/joint_commands',
+                                                   command_qos) for t in targets}
+
+    def stream(self, rate, count, base, record=True):
+        """``count`` joint_commands at ``rate`` Hz: every module's rho on a small sine
+        (phase-shifted per module) around config/neck.yaml's start, every m0 value distinct."""
+        period = 1e9 / rate
+        values = []
+        start = time.perf_counter_ns()
+        msg = self.JointState(name=[f'{m}_rho' for m in NECK_MODULES])
+        for i in range(count):
+            due = start + int(i * period)
+            delay = (due - time.perf_counter_ns()) * 1e-9
+            if delay > 0:
+                time.sleep(delay)
+            phase = 2 * math.pi * (base + i) / NECK_PERIOD
+            msg.position = [rho + NECK_AMPLITUDE * math.sin(phase + j)
+                            + (base + i) * 1e-12 * (j == 0)
+                            for j, rho in enumerate(NECK_RHO)]
+            value = msg.position[0]
+            order = self.targets if i % 2 == 0 else self.targets[::-1]
+            for t in order:
+                if record:
+                    self.sent[t][value] = time.perf_counter_ns()
+                self.pubs[t].publish(msg)
+            values.append(value)
+        return values
+
+
+def neck_main(argv=None):
+    """The neck at 1 kHz (issue 14): tensegrity_node on config/neck.yaml and a bare
+    joint_commands relay side by side; target: nothing lost, node p50 within 2x the relay's."""
+    parser = argparse.ArgumentParser(description=neck_main.__doc__.split('\n')[0])
+    parser.add_argument('--neck', action='store_true', help='run the neck case (this one)')
+    parser.add_argument('--neck-relay', action='store_true', help=argparse.SUPPRESS)
+    parser.add_argument('--rate', type=float, default=1000.0)
+    parser.add_argument('--seconds', type=float, default=4.0)
+    parser.add_argument('--node-executor', choices=['single', 'events'], default='events')
+    parser.add_argument('--strict', action='store_true', help='exit 1 if the target is missed')
+    args, _ros_args = parser.parse_known_args(argv)
+    if args.neck_relay:
+        return run_neck_relay()
+    env = _ros_env()
+    os.environ.update({k: env[k] for k in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_DOMAIN_ID')})
+    os.environ.pop('ROS_PYTHON_CHECK_FIELDS', None)
+    commands = {
+        'bench_neck_node': [sys.executable, '-m', 'tensegrity_ros.node', '--executor',
+                            args.node_executor, '--ros-args', '--params-file',
+                            str(NECK_CONFIG), '-r', '__ns:=/bench_neck_node'],
+        'bench_neck_relay': [sys.executable, __file__, '--neck-relay', '--ros-args',
+                             '-r', '__ns:=/bench_neck_relay'],
+    }
+    procs = [subprocess.Popen(c, cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.PIPE, text=True) for c in commands.values()]
+    driver, stats, cpu = None, {}, {}
+    try:
+        driver = NeckDriver(list(commands))
+        if not driver.wait_matched(60.0):
+            raise RuntimeError('neck node or relay not discovered within 60 s')
+        values = driver.stream(200.0, 200, 0)                  # warm-up, discarded
+        driver.wait_received(values, 10.0)
+        count = int(args.rate * args.seconds)
+        cpu0 = {t: _cpu_seconds(p.pid) for t, p in zip(commands, procs)}
+        values = driver.stream(args.rate, count, len(values))
+        driver.wait_received(values, 5.0)
+        stats = {t: driver.stats(t, values) for t in commands}
+        cpu = {t: (_cpu_seconds(p.pid) - cpu0[t]) / count * 1e6 for t, p in zip(commands, procs)}
+    finally:
+        if driver is not None:
+            driver.close()
+        for p in procs:
+            if p.poll() is None:
+                p.send_signal(2)
+        for p in procs:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+    load = os.getloadavg()[0]
+    print(f'neck (config/neck.yaml), joint_commands with three m*_rho targets at '
+          f'{args.rate:g} Hz for {args.seconds:g} s, small moves (+-{NECK_AMPLITUDE * 1e3:g} mm); '
+          f'latency command -> joint_states (us); {os.cpu_count()} CPUs, load {load:.1f}')
+    print(f'{"process":<17} {"sent":>6} {"lost":>5} {"p50":>8} {"p90":>8} {"p99":>8} '
+          f'{"max":>9} {"cpu/cmd":>8}')
+    for t, st in stats.items():
+        print(f'{t:<17} {st["sent"]:>6} {st["lost"]:>5} {st["p50_us"]:>8.0f} {st["p90_us"]:>8.0f} '
+              f'{st["p99_us"]:>8.0f} {st["max_us"]:>9.0f} {cpu[t]:>8.0f}')
+    node, relay = stats['bench_neck_node'], stats['bench_neck_relay']
+    ratio = node['p50_us'] / relay['p50_us']
+    ok = node['lost'] == 0 and ratio <= 2.0
+    print(f'node/relay p50 ratio {ratio:.2f} (target <= 2, nothing lost): '
+          f'{"met" if ok else "NOT met"}')
+    return 1 if (args.strict and not ok) else 0
+
+
 if __name__ == '__main__':
-    sys.exit(main())
+    sys.exit(neck_main() if {'--neck', '--neck-relay'} & set(sys.argv) else main())

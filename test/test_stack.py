@@ -240,6 +240,8 @@ def test_critical_load_falls_as_the_neck_grows_and_n1_is_the_module_fold():
     loads = [critical_head_load(n)[0].stack.modules[-1].f3y for n in (1, 2, 3, 4)]
     magnitudes = [-f for f in loads]
     assert all(a > b for a, b in zip(magnitudes, magnitudes[1:])), magnitudes
+    # the figures the node-coordinate formulation gave (README): 31.0, 18.86, 6.85, 3.67 N
+    assert magnitudes == pytest.approx([31.0115, 18.8595, 6.8538, 3.6666], abs=1e-4)
     # N = 1: the module solver's tracker reports the same fold
     upright = equilibria(ModuleParams.paper(0.6)).stable[-1].theta
     module = track_module(ModuleParams.paper(0.6), ModuleParams.paper(0.6, F3=-40, F4=-40), upright)
@@ -291,7 +293,7 @@ def test_settle_from_near_a_maximum_comes_to_rest():
     from tensegrity_ros.core import TrackerSettings
     stack = Stack((ModuleParams.paper(0.75), ModuleParams.paper(0.75),
                    ModuleParams.paper(0.75, F3=-1, F4=-1)))
-    start = np.array([[2.347, -0.174], [2.593, 1.671], [2.61, -2.341]])
+    start = np.array([[-3.126, -0.002], [-3.126, -0.002], [3.139, 3.139]])    # a maximum, rounded
     path = StackPath(stack, stack)
     assert np.all(path.eigenvalues(path.state_from_angles(start, 0.0), 0.0) < 0)
     landed = settle_stack(stack, start, settings=TrackerSettings(flow_evaluations=20000))

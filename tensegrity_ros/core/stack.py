@@ -4,16 +4,18 @@ Module i+1 sits on module i's top chord: A1(i+1) = A4(i), A2(i+1) = A3(i), and
 module i+1's telescopic rod is that chord, |A3(i) - A4(i)| = rho(i+1).  Module
 i+1's base frame has its origin at A4(i) and its x axis along A4(i) -> A3(i).
 
-Coordinates.  The unknowns are the positions of every moving node (A3, A4 of
-each module, in the stack's base frame) and one Lagrange multiplier per rigid
-length: both rods of every module and every chord.  In these coordinates the
-energy (zero-free-length springs, constant loads) and the length constraints
-are quadratic, so all derivatives are exact and cheap.  Equilibria are KKT
-points; stability is the reduced Hessian (the Hessian of the Lagrangian on
-the tangent space of the constraints) being positive definite.  Its
-eigenvalues are stiffnesses in N/m along orthonormal node displacements (for
-one module the module solver reports J/rad^2 along the angles instead: same
-signs, same critical points, different units).
+Coordinates (a reduced formulation).  The unknowns are the absolute angles of
+the 2N rods and one Lagrange multiplier per chord (N - 1): 3N - 1 unknowns.
+Every node is A2(0) or the origin plus a sum of rod vectors, so the rods are
+rigid by construction, and the energy (zero-free-length springs, constant
+loads) and the chord constraints are quadratic in the rod vectors: all first
+and second derivatives are exact and cheap.  Equilibria are KKT points;
+stability is the reduced Hessian (the Hessian of the Lagrangian on the tangent
+space of the chord constraints) being positive definite.  Its eigenvalues are
+taken in the Cartesian metric of the moving nodes, so that they are
+stiffnesses in N/m along orthonormal node displacements, as in node
+coordinates (for one module the module solver reports J/rad^2 along the angles
+instead: same signs, same critical points, different units).
 
 Every module keeps its A3A4 spring.  In a lower module it is in parallel with
 the chord (a rigid length), so it has no effect on equilibria or stability;
@@ -24,11 +26,14 @@ lower module loads that module).
 """
 from __future__ import annotations
 
+import cmath
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg.lapack import (dgeqrf as _dgeqrf, dgesv as _dgesv, dgetrf as _dgetrf,
+                                 dgetrs as _dgetrs, dorgqr as _dorgqr, dsygv as _dsygv)
 from scipy.optimize import root
 
 from . import continuation as _continuation
@@ -43,13 +48,18 @@ _DAMPING = 1e-3
 _DAMPING_ONSET = 1e-2
 
 
-def _solve_gram(jc, rhs):
-    """(J J^T)^-1 rhs, or the least-squares answer where the constraints are dependent
-    (a kinematically singular stack: rods folded flat onto a chord, or degenerate sizes)."""
+def _solve_guarded(matrix, rhs):
+    """matrix^-1 rhs, or the least-squares answer where ``matrix`` (a constraint Gram
+    matrix) is singular: a kinematically singular stack, rods folded flat onto a chord."""
     try:
-        return np.linalg.solve(jc @ jc.T, rhs)
+        return np.linalg.solve(matrix, rhs)
     except np.linalg.LinAlgError:
-        return np.linalg.lstsq(jc @ jc.T, rhs, rcond=None)[0]
+        return np.linalg.lstsq(matrix, rhs, rcond=None)[0]
+
+
+def _solve_gram(jc, rhs):
+    """(J J^T)^-1 rhs, guarded as :func:`_solve_guarded`."""
+    return _solve_guarded(jc @ jc.T, rhs)
 
 
 @dataclass(frozen=True)
@@ -75,7 +85,13 @@ class Stack:
         return len(self.modules)
 
     def vector(self):
-        return np.concatenate([m.vector() for m in self.modules])
+        """The parameters of every module (N x 12, flattened; a fresh copy)."""
+        return self._vector.copy()
+
+    @functools.cached_property
+    def _vector(self):
+        return np.array([[getattr(m, name) for name in PARAMETER_NAMES]
+                         for m in self.modules], dtype=float).ravel()
 
     def from_vector(self, values):
         values = np.asarray(values, dtype=float).reshape(len(self), len(PARAMETER_NAMES))
@@ -88,9 +104,16 @@ class Stack:
 
 
 class _Topology:
-    """Index tables of the node graph of an N-module stack.
+    """Index tables of the node graph of an N-module stack, in rod vectors.
 
     Node table: 0 = A1(0), 1 = A2(0) (fixed), 2 + 2i = A3(i), 3 + 2i = A4(i).
+    Rod 2i is module i's A1A3 (length L1), rod 2i + 1 its A2A4 (L2).  Every node is
+    ``node_base[k] * P + node_rods[k] @ v`` with P = A2(0) = rho(0) and v the rod
+    vectors, all as complex numbers x + iy: A3(i) = A1(i) + v[2i], A4(i) = A2(i) + v[2i+1].
+    Elements are the springs (ka: A2A3, kb: A1A4, kc: A3A4 of every module) and then
+    the chords A3(i)A4(i), i < N - 1 (rigid: the rod of module i + 1), as Xa - Xb.
+    Every parameter enters through a fixed index or a linear map of the stack's
+    parameter vector (N x 12, flattened).
     """
 
     def __init__(self, n):
@@ -101,33 +124,64 @@ class _Topology:
         a2 = lambda i: 1 if i == 0 else a3(i - 1)
         self.a1, self.a2, self.a3, self.a4 = a1, a2, a3, a4
         self.nodes = 2 + 2 * n
-        # springs: (a, b, module, parameter) for ka: A2A3, kb: A1A4, kc: A3A4
-        springs = []
+        self.n_rods = 2 * n
+        self.n_chords = n - 1
+        rods = np.zeros((self.nodes, self.n_rods))
+        base = np.zeros(self.nodes)
+        base[1] = 1.0
         for i in range(n):
-            springs += [(a2(i), a3(i), i, 'ka'), (a1(i), a4(i), i, 'kb'), (a3(i), a4(i), i, 'kc')]
-        # rigid lengths: (a, b, module, parameter): rods L1, L2, chords rho of the module above
-        rigid = []
+            rods[a3(i)], base[a3(i)] = rods[a1(i)], base[a1(i)]
+            rods[a3(i), 2 * i] = 1.0
+            rods[a4(i)], base[a4(i)] = rods[a2(i)], base[a2(i)]
+            rods[a4(i), 2 * i + 1] = 1.0
+        self.node_rods, self.node_base = rods, base
+        index = lambda i, name: i * len(PARAMETER_NAMES) + _P[name]
+        springs, self.spring_index = [], []
         for i in range(n):
-            rigid += [(a1(i), a3(i), i, 'L1'), (a2(i), a4(i), i, 'L2')]
-            if i + 1 < n:
-                rigid.append((a3(i), a4(i), i + 1, 'rho'))
-        self.spring_ends = np.array([(a, b) for a, b, _, _ in springs])
-        self.spring_params = [(i, _P[name]) for _, _, i, name in springs]
-        self.rigid_ends = np.array([(a, b) for a, b, _, _ in rigid])
-        self.rigid_params = [(i, _P[name]) for _, _, i, name in rigid]
-        self.springs_incidence = _incidence(self.spring_ends, self.nodes)
-        self.rigid_incidence = _incidence(self.rigid_ends, self.nodes)
-        self.n_var = 4 * n
-        self.n_rigid = len(rigid)
+            springs += [(a2(i), a3(i)), (a1(i), a4(i)), (a3(i), a4(i))]
+            self.spring_index += [index(i, 'ka'), index(i, 'kb'), index(i, 'kc')]
+        chords = [(a3(i), a4(i)) for i in range(n - 1)]
+        self.chord_index = [index(i + 1, 'rho') for i in range(n - 1)]
+        self.rod_index = [index(i, name) for i in range(n) for name in ('L1', 'L2')]
+        self.rho0_index = index(0, 'rho')
+        self.element_ends = springs + chords
+        self.rod_ends = [pair for i in range(n) for pair in ((a1(i), a3(i)), (a2(i), a4(i)))]
+        ends = np.array(self.element_ends, dtype=int).reshape(-1, 2)
+        self.element_rods = rods[ends[:, 0]] - rods[ends[:, 1]]          # (elements, 2N)
+        self.element_rods_t = np.ascontiguousarray(self.element_rods.T)
+        self.element_base = base[ends[:, 0]] - base[ends[:, 1]]
+        self.chord_rods = self.element_rods[len(springs):]
+        self.n_springs = len(springs)
+        self.mobility = rods[_FIXED:].T @ rods[_FIXED:]   # moving nodes shared by two rods
+        self.identity = np.eye(self.n_rods)
+        self.angle_mask = np.concatenate([np.ones(self.n_rods), np.zeros(self.n_chords)])
+        # loads: complex node forces = (forces + g * weights) @ parameters
+        forces = np.zeros((self.nodes, n * len(PARAMETER_NAMES)), dtype=complex)
+        weights = np.zeros((self.nodes, n * len(PARAMETER_NAMES)))
+        for i in range(n):
+            forces[a3(i), index(i, 'f3x')] += 1.0
+            forces[a3(i), index(i, 'f3y')] += 1j
+            forces[a4(i), index(i, 'f4x')] += 1.0
+            forces[a4(i), index(i, 'f4y')] += 1j
+            for node in (a1(i), a3(i)):
+                weights[node, index(i, 'm1')] -= 0.5
+            for node in (a2(i), a4(i)):
+                weights[node, index(i, 'm2')] -= 0.5
+        self.load_forces, self.load_weights = forces, 1j * weights
+        self._load_maps = {}
 
+    def load_map(self, g):
+        """Complex node forces per parameter (nodes x 12N) under gravity g."""
+        return self.load_forces + g * self.load_weights
 
-def _expand(node_matrix):
-    """kron(node_matrix[moving, moving], I2): node couplings to coordinate couplings."""
-    m = node_matrix[_FIXED:, _FIXED:]
-    out = np.zeros((2 * m.shape[0], 2 * m.shape[1]))
-    out[0::2, 0::2] = m
-    out[1::2, 1::2] = m
-    return out
+    def load_maps(self, g):
+        """Per parameter under gravity g: the loads carried by every rod vector (2N x 12N,
+        complex) and the x load carried by A2(0) (12N,)."""
+        found = self._load_maps.get(g)
+        if found is None:
+            nodes = self.load_map(g)
+            found = self._load_maps[g] = (self.node_rods.T @ nodes, self.node_base @ nodes.real)
+        return found
 
 
 @functools.lru_cache(maxsize=32)
@@ -135,81 +189,202 @@ def _topology(n):
     return _Topology(n)
 
 
-def _incidence(ends, nodes):
-    """Node-by-element matrix with +1 at the first end and -1 at the second."""
-    matrix = np.zeros((nodes, len(ends)))
-    matrix[ends[:, 0], np.arange(len(ends))] = 1.0
-    matrix[ends[:, 1], np.arange(len(ends))] -= 1.0
-    return matrix
+def _null_basis(jc):
+    """A basis (columns) of the null space of ``jc`` (m x n, full row rank, m < n): the
+    trailing columns of a complete QR of jc^T, by LAPACK directly (no per-call checks)."""
+    m, n = jc.shape
+    if m == 0:
+        return np.eye(n)
+    padded = np.zeros((n, n), order='F')
+    padded[:, :m] = jc.T
+    qr, tau, _, _ = _dgeqrf(padded, overwrite_a=True)
+    q, _, _ = _dorgqr(qr, tau, overwrite_a=True)
+    return q[:, m:]
 
 
-class _Loads:
-    """Per-node external force (base frame) from the module parameters (nodes x 2)."""
+def _solve(matrix, rhs):
+    """matrix^-1 rhs by LAPACK's dgesv (raises LinAlgError when singular)."""
+    _, _, x, info = _dgesv(matrix, rhs)
+    if info != 0:
+        raise np.linalg.LinAlgError(f'singular matrix (dgesv info={info})')
+    return x
 
-    @staticmethod
-    def build(topology, values, g):
-        loads = np.zeros((topology.nodes, 2))
-        for i, v in enumerate(values):
-            loads[topology.a3(i)] += (v[_P['f3x']], v[_P['f3y']])
-            loads[topology.a4(i)] += (v[_P['f4x']], v[_P['f4y']])
-            half1, half2 = 0.5 * v[_P['m1']] * g, 0.5 * v[_P['m2']] * g
-            loads[topology.a1(i), 1] -= half1
-            loads[topology.a3(i), 1] -= half1
-            loads[topology.a2(i), 1] -= half2
-            loads[topology.a4(i), 1] -= half2
-        return loads
+
+class _Values:
+    """The path's parameters at one s, or their rates along s (all linear in the
+    parameter vector, so the values at s are those at 0 plus s times the rates)."""
+
+    __slots__ = ('s', 'k', 'chord', 'chord_squares', 'rod', 'rod_loads', 'base_load', 'rho0',
+                 'shift', 'weights')
+
+    @classmethod
+    def of(cls, top, g, p, s):
+        """The values of parameter vector ``p`` (N x 12, flattened)."""
+        self = cls()
+        self.s = s
+        self.k = p[top.spring_index]
+        self.chord = p[top.chord_index]
+        self.chord_squares = self.chord ** 2
+        self.rod = p[top.rod_index]
+        self.rho0 = float(p[top.rho0_index])
+        rod_loads, base_load = top.load_maps(g)
+        self.rod_loads = rod_loads @ p                      # d(load work)/d(rod vector)
+        self.base_load = float(base_load @ p)               # x force carried by A2(0)
+        self.shift = top.element_base * self.rho0
+        self.weights = np.concatenate([self.k, np.zeros(top.n_chords)])
+        return self
+
+    @classmethod
+    def of_stack(cls, stack, top):
+        """The values of ``stack``, kept on it (a node's end stack is the next start)."""
+        found = stack.__dict__.get('_path_values')     # frozen dataclass: not a field
+        if found is None:
+            found = stack.__dict__['_path_values'] = cls.of(top, stack.modules[0].g,
+                                                            stack._vector, None)
+        return found
+
+    @classmethod
+    def difference(cls, one, zero):
+        """one - zero: the rates along s of a straight path."""
+        self = cls()
+        self.s = None
+        for name in cls.__slots__[1:]:
+            setattr(self, name, getattr(one, name) - getattr(zero, name))
+        return self
+
+    @classmethod
+    def along(cls, zero, rate, s):
+        """zero + s * rate."""
+        self = cls()
+        self.s = s
+        self.k = zero.k + s * rate.k
+        self.chord = zero.chord + s * rate.chord
+        self.chord_squares = self.chord ** 2
+        self.rod = zero.rod + s * rate.rod
+        self.rod_loads = zero.rod_loads + s * rate.rod_loads
+        self.base_load = zero.base_load + s * rate.base_load
+        self.rho0 = zero.rho0 + s * rate.rho0
+        self.shift = zero.shift + s * rate.shift
+        self.weights = zero.weights + s * rate.weights
+        return self
+
+
+class _Point:
+    """Everything the path needs at one (state, s), computed once: rod vectors ``rods``
+    (2N complex), element differences ``diff`` (elements, complex), the element
+    weights (stiffnesses, then chord multipliers / l_ref) and the generalized force
+    ``force`` = dL/d(rod vector) (2N complex, x + iy)."""
+
+    __slots__ = ('key', 'values', 'mu', 'rods', 'diff', 'squares', 'force', 'weights',
+                 '_hessian', '_jc', '_gram', 'rates')
+
+    def __init__(self, path, y, key, values):
+        top = path.topology
+        n = top.n_rods
+        self.key, self.values = key, values
+        self.mu = y[n:] * path.f_ref
+        self.rods = values.rod * np.exp(1j * y[:n])
+        diff = self.diff = top.element_rods @ self.rods + values.shift
+        squares = self.squares = np.abs(diff)
+        squares *= squares
+        weights = self.weights = values.weights.copy()
+        weights[top.n_springs:] = y[n:] * path.f_ref_per_l_ref
+        self.force = top.element_rods_t @ (weights * diff) - values.rod_loads
+        self._hessian = self._jc = self._gram = self.rates = None
+
+    def gradient(self):
+        """dL/dphi (2N,): the torque of the generalized force about every rod's base."""
+        return (self.rods.conj() * self.force).imag
+
+    @property
+    def gram(self):
+        """v_r . v_q (2N x 2N), also the dot products of the rods' angular velocities."""
+        if self._gram is None:
+            rods = self.rods
+            self._gram = (rods[:, None] * rods.conj()).real
+        return self._gram
+
+    def hessian(self, path):
+        """d2L/dphi2 (2N x 2N)."""
+        if self._hessian is None:
+            e = path.topology.element_rods
+            h = (path.topology.element_rods_t @ (self.weights[:, None] * e)) * self.gram
+            h.flat[::len(h) + 1] -= (self.rods.conj() * self.force).real
+            self._hessian = h
+        return self._hessian
+
+    def chords(self, path):
+        return self.diff[path.topology.n_springs:]
+
+    def constraints(self, path):
+        return (self.squares[path.topology.n_springs:] - self.values.chord_squares) * path.half_inv_l_ref
+
+    def constraint_jacobian(self, path):
+        """d c / d phi ((N - 1) x 2N): chord . (i v_r) / l_ref where rod r builds the chord."""
+        if self._jc is None:
+            chords = self.chords(path)
+            self._jc = path.topology.chord_rods * (
+                (chords.conj()[:, None] * self.rods).imag * -path.inv_l_ref)
+        return self._jc
+
+    def metric(self, path):
+        """J^T J of the map from rod angles to moving node coordinates: the Cartesian metric."""
+        return path.topology.mobility * self.gram
 
 
 class StackPath:
     """A stack along p(s) = start + s (end - start), as a tracker PathProblem.
 
-    State y = [moving node coordinates (4N), multipliers of the rigid lengths (3N - 1)].
-    Constraints are scaled as (|Xa - Xb|^2 - l^2) / (2 l_ref) (metres) so that
-    the multipliers are forces (N) and the KKT matrix is symmetric.
+    State y = [absolute angles of the 2N rods (rad, from the base x axis),
+    multipliers of the N - 1 chord lengths in units of f_ref = max k * l_ref].  Node positions are sums of rod
+    vectors, so rods are rigid by construction; each chord is a constraint, scaled
+    as (|A3 - A4|^2 - l^2) / (2 l_ref) (metres) so that its multiplier is the chord's
+    compression force.  The residual is [dL/dphi / l_ref (N), constraints (m)].
+    Stability eigenvalues are those of the reduced Hessian in the Cartesian metric of
+    the moving nodes (a generalized symmetric eigenproblem on the constraint tangent
+    space): stiffnesses in N/m along orthonormal node displacements, the same numbers
+    as in node coordinates.  Every evaluation at one (y, s) is computed once.
     """
 
     def __init__(self, start: Stack, end: Stack):
         if len(start) != len(end):
             raise InvalidParameterError('start and end stacks differ in size')
         self.start, self.end = start, end
-        self.topology = _topology(len(start))
+        self.topology = top = _topology(len(start))
         self.n = len(start)
-        self.size = self.topology.n_var + self.topology.n_rigid
+        self.size = top.n_rods + top.n_chords
         self.p0 = start.vector()
         self.dp = end.vector() - self.p0
         self.g = start.modules[0].g
-        lengths = [m.L1 for m in start.modules] + [m.L2 for m in start.modules]
-        self.l_ref = float(np.mean(lengths))
-        self.state_weights = np.concatenate([np.full(self.topology.n_var, 1.0 / self.l_ref),
-                                             np.zeros(self.topology.n_rigid)])
-        self._cache_s = None
-        self._precompute()
+        rods = self.p0[top.rod_index]
+        self.l_ref = float(rods.sum()) / top.n_rods
+        # multipliers are stored in units of f_ref, so that the state is dimensionless
+        self.f_ref = float(self.p0[top.spring_index].max()) * self.l_ref
+        self.half_inv_l_ref = 0.5 / self.l_ref
+        self.f_ref_per_l_ref = self.f_ref / self.l_ref
+        self.inv_l_ref = 1.0 / self.l_ref
+        # Step sizes as node displacements (in l_ref), as in node coordinates: a node is
+        # moved by at most the summed lengths of the rods that build it times max |d phi|.
+        self.state_weights = top.angle_mask * (float((top.node_rods @ rods).max()) / self.l_ref)
+        zero, one = _Values.of_stack(start, top), _Values.of_stack(end, top)
+        self._zero_values = zero
+        self._rate_values = _Values.difference(one, zero)
+        self._values = {0.0: zero, 1.0: one}
+        self._point = None
 
     # -- parameters at s -------------------------------------------------------
-    def _precompute(self):
-        """Everything the path needs at s = 0 and its rate along s (all linear in s)."""
-        top = self.topology
-        ends = [v.reshape(self.n, len(PARAMETER_NAMES)) for v in (self.p0, self.p0 + self.dp)]
-        k = [np.array([v[i, j] for i, j in top.spring_params]) for v in ends]
-        lengths = [np.array([v[i, j] for i, j in top.rigid_params]) for v in ends]
-        loads = [_Loads.build(top, v, self.g) for v in ends]
-        stiffness = [_expand(top.springs_incidence @ np.diag(kk) @ top.springs_incidence.T)
-                     for kk in k]
-        pairs = {'k': k, 'len': lengths, 'loads': loads, 'stiffness': stiffness,
-                 'rho0': [v[0, _P['rho']] for v in ends]}
-        self._base = {name: a for name, (a, b) in pairs.items()}
-        self._rate = {name: b - a for name, (a, b) in pairs.items()}
+    def at(self, s):
+        """The parameters at s (:class:`_Values`, reused while s stays the same)."""
+        values = self._values.get(s)
+        if values is None:
+            if len(self._values) > 3:
+                self._values.clear()
+            values = self._values[s] = _Values.along(self._zero_values, self._rate_values, s)
+        return values
 
-    def _at(self, s):
-        if s != self._cache_s:
-            base, rate = self._base, self._rate
-            self._k = base['k'] + s * rate['k']
-            self._len = base['len'] + s * rate['len']
-            self._loads = base['loads'] + s * rate['loads']
-            self._stiffness = base['stiffness'] + s * rate['stiffness']
-            self._rho0 = base['rho0'] + s * rate['rho0']
-            self._cache_s = s
-        return self
+    def parameter_vector(self, s):
+        """The stack parameters at s (N x 12, flattened), exactly the end's at s = 1."""
+        return self.end._vector if s == 1.0 else self.p0 + s * self.dp
 
     def params(self, s):
         return self.start.from_vector(self.p0 + s * self.dp)
@@ -221,180 +396,228 @@ class StackPath:
             return False
         return True
 
+    def loads(self, s):
+        """External force on every node (nodes x 2), base frame."""
+        loads = self.topology.load_map(self.g) @ (self.p0 + s * self.dp)
+        return np.column_stack([loads.real, loads.imag])
+
+    def point(self, y, s):
+        """The evaluated :class:`_Point` at (y, s), reused while (y, s) stays the same."""
+        y = np.asarray(y, dtype=float)
+        key = (s, y.tobytes())
+        p = self._point
+        if p is None or p.key != key:
+            p = self._point = _Point(self, y, key, self.at(s))
+        return p
+
     def nodes(self, y, s):
         """All node positions (nodes x 2) including the fixed A1(0), A2(0)."""
-        self._at(s)
-        table = np.empty((self.topology.nodes, 2))
-        table[0] = 0.0
-        table[1] = (self._rho0, 0.0)
-        table[_FIXED:] = np.asarray(y[:self.topology.n_var]).reshape(-1, 2)
-        return table
-
-    # -- pieces ------------------------------------------------------------------
-    def _parts(self, y, s):
         top = self.topology
-        x = self.nodes(y, s)
-        mu = np.asarray(y[top.n_var:])
-        d_spring = top.springs_incidence.T @ x                  # (springs, 2) Xa - Xb
-        d_rigid = top.rigid_incidence.T @ x                     # (rigid, 2)
-        return x, mu, d_spring, d_rigid
-
-    def _constraints(self, d_rigid):
-        return (np.einsum('ij,ij->i', d_rigid, d_rigid) - self._len ** 2) / (2.0 * self.l_ref)
-
-    def _constraint_jacobian(self, d_rigid):
-        """d c / d(moving coordinates), (rigid, 4N)."""
-        top = self.topology
-        full = top.rigid_incidence.T[:, :, None] * d_rigid[:, None, :] / self.l_ref
-        return full[:, _FIXED:, :].reshape(top.n_rigid, top.n_var)
-
-    def _internal_forces(self, d_spring, d_rigid, mu):
-        """dL_internal/dX for every node (nodes x 2): springs plus rigid-length forces."""
-        top = self.topology
-        return (top.springs_incidence @ (self._k[:, None] * d_spring)
-                + top.rigid_incidence @ ((mu / self.l_ref)[:, None] * d_rigid))
+        x = top.node_rods @ self.point(y, s).rods + top.node_base * self.at(s).rho0
+        return np.column_stack([x.real, x.imag])
 
     # -- PathProblem ---------------------------------------------------------------
     def residual(self, y, s):
-        x, mu, d_spring, d_rigid = self._parts(y, s)
-        grad = self._internal_forces(d_spring, d_rigid, mu) - self._loads
-        return np.concatenate([grad[_FIXED:].ravel(), self._constraints(d_rigid)])
-
-    def _lagrangian_hessian(self, mu):
-        top = self.topology
-        nodes_mu = (top.rigid_incidence * (mu / self.l_ref)) @ top.rigid_incidence.T
-        return self._stiffness + _expand(nodes_mu)
+        p = self.point(y, s)
+        return np.concatenate([p.gradient() / self.l_ref, p.constraints(self)])
 
     def jacobian(self, y, s):
-        x, mu, d_spring, d_rigid = self._parts(y, s)
-        jc = self._constraint_jacobian(d_rigid)
-        m = self.topology.n_rigid
-        return np.block([[self._lagrangian_hessian(mu), jc.T], [jc, np.zeros((m, m))]])
+        p = self.point(y, s)
+        n = self.topology.n_rods
+        jc = p.constraint_jacobian(self)
+        out = np.zeros((self.size, self.size))
+        out[:n, :n] = p.hessian(self) / self.l_ref
+        out[:n, n:] = jc.T * (self.f_ref / self.l_ref)
+        out[n:, :n] = jc
+        return out
+
+    def _rates(self, p):
+        """d(rod vectors)/ds, d(element differences)/ds at fixed state (kept in the point)."""
+        if p.rates is None:
+            rate = self._rate_values
+            d_rods = p.rods * (rate.rod / p.values.rod)
+            p.rates = d_rods, self.topology.element_rods @ d_rods + rate.shift
+        return p.rates
 
     def residual_s(self, y, s):
-        # The residual is at most quadratic in s along a straight path, so the central
-        # difference is exact up to rounding.
-        h = 1e-3
-        return (self.residual(y, s + h) - self.residual(y, s - h)) / (2.0 * h)
+        """dF/ds at fixed state (analytic: parameters move linearly along the path)."""
+        p = self.point(y, s)
+        top, rate = self.topology, self._rate_values
+        d_rods, d_diff = self._rates(p)
+        d_force = (top.element_rods_t @ (rate.weights * p.diff + p.weights * d_diff)
+                   - rate.rod_loads)
+        d_gradient = (p.rods.conj() * d_force + d_rods.conj() * p.force).imag
+        ns = top.n_springs
+        d_c = ((p.diff[ns:].conj() * d_diff[ns:]).real - p.values.chord * rate.chord) / self.l_ref
+        return np.concatenate([d_gradient / self.l_ref, d_c])
 
     def energy(self, y, s):
         """The Lagrangian U + mu . c (equal to U on the constraint manifold)."""
-        x, mu, d_spring, d_rigid = self._parts(y, s)
-        springs = 0.5 * float(self._k @ np.einsum('ij,ij->i', d_spring, d_spring))
-        return springs - float(np.sum(self._loads * x)) + float(mu @ self._constraints(d_rigid))
+        p = self.point(y, s)
+        v, ns = p.values, self.topology.n_springs
+        springs = 0.5 * float(v.k @ p.squares[:ns])
+        work = float((v.rod_loads.conj() @ p.rods).real) + v.base_load * v.rho0
+        return springs - work + float(p.mu @ p.constraints(self))
+
+    def energy_and_rate(self, y, s):
+        """(energy, energy_s) at one point, sharing their terms."""
+        return self.energy(y, s), self.energy_s(y, s)
 
     def energy_s(self, y, s):
-        h = 1e-3
-        return (self.energy(y, s + h) - self.energy(y, s - h)) / (2.0 * h)
+        """dL/ds at fixed state (the envelope theorem's side of the tracker's energy check)."""
+        p = self.point(y, s)
+        v, rate, ns = p.values, self._rate_values, self.topology.n_springs
+        d_rods, d_diff = self._rates(p)
+        springs = (0.5 * float(rate.k @ p.squares[:ns])
+                   + float(p.weights @ (p.diff.conj() * d_diff).real))
+        work = (float((rate.rod_loads.conj() @ p.rods + v.rod_loads.conj() @ d_rods).real)
+                + rate.base_load * v.rho0 + v.base_load * rate.rho0)
+        return springs - work - float(p.mu @ (v.chord * rate.chord)) / self.l_ref
 
     def _reduced(self, y, s):
-        x, mu, d_spring, d_rigid = self._parts(y, s)
-        jc = self._constraint_jacobian(d_rigid)
-        w = self._lagrangian_hessian(mu)
-        q, _ = np.linalg.qr(jc.T, mode='complete')       # jc has full row rank
-        z = q[:, jc.shape[0]:]
-        return jc, w, z
+        """(reduced Hessian, reduced metric, null basis Z, point) on the tangent space."""
+        p = self.point(y, s)
+        if not self.topology.n_chords:
+            return p.hessian(self), p.metric(self), self.topology.identity, p
+        z = _null_basis(p.constraint_jacobian(self))
+        zt = z.T
+        return zt @ p.hessian(self) @ z, zt @ p.metric(self) @ z, z, p
 
     def eigenvalues(self, y, s):
-        jc, w, z = self._reduced(y, s)
-        return np.linalg.eigvalsh(z.T @ w @ z)
+        a, b, _, _ = self._reduced(y, s)
+        values, _, info = _dsygv(a, b, jobz='N')
+        if info != 0:
+            raise np.linalg.LinAlgError(f'reduced eigenproblem failed (dsygv info={info})')
+        return values
 
     def stability(self, y, s):
-        """Reduced-Hessian eigenvalues and the matching KKT-space modes (Z v, d mu)."""
-        jc, w, z = self._reduced(y, s)
-        values, vectors = np.linalg.eigh(z.T @ w @ z)
-        dx = z @ vectors
-        dmu = -_solve_gram(jc, jc @ w @ dx)
-        return values, np.vstack([dx, dmu])
+        """Reduced-Hessian eigenvalues and the matching state-space modes (Z v, d mu)."""
+        a, b, z, p = self._reduced(y, s)
+        values, vectors, info = _dsygv(a, b, jobz='V')
+        if info != 0:
+            raise np.linalg.LinAlgError(f'reduced eigenproblem failed (dsygv info={info})')
+        dphi = z @ vectors
+        jc = p.constraint_jacobian(self)
+        dmu = -_solve_gram(jc, jc @ (p.hessian(self) @ dphi)) / self.f_ref
+        return values, np.vstack([dphi, dmu])
+
+    def _unconstrained_gradient(self, p):
+        """dU/dphi without the chord forces (2N,)."""
+        top = self.topology
+        ns = top.n_springs
+        springs = top.element_rods_t[:, :ns] @ (p.weights[:ns] * p.diff[:ns])
+        return (p.rods.conj() * (springs - p.values.rod_loads)).imag
 
     def descent(self, y, s):
-        """Overdamped velocity: the projected force plus a pull back onto the constraints."""
-        x, mu, d_spring, d_rigid = self._parts(y, s)
-        grad = (self._internal_forces(d_spring, d_rigid, np.zeros_like(mu)) - self._loads)[_FIXED:].ravel()
-        jc = self._constraint_jacobian(d_rigid)
+        """Overdamped velocity in the Cartesian metric of the nodes: the projected force
+        plus a pull back onto the chord constraints."""
+        p = self.point(y, s)
+        free = np.linalg.solve(p.metric(self), self._unconstrained_gradient(p))
+        if not self.topology.n_chords:
+            return -free
+        jc = p.constraint_jacobian(self)
+        mobility_jc = np.linalg.solve(p.metric(self), jc.T)
+        gram = jc @ mobility_jc
         # Damped (Levenberg) projection: smooth through kinematic singularities of the
         # stack, where rods fold flat onto a chord and the constraint rows degenerate.
-        gram = jc @ jc.T
         smallest = np.linalg.eigvalsh(gram)[0]
         if smallest < _DAMPING_ONSET:
-            gram = gram + _DAMPING * (1.0 - smallest / _DAMPING_ONSET) ** 2 * np.eye(len(mu))
-        tangential = grad - jc.T @ np.linalg.solve(gram, jc @ grad)
-        restoring = jc.T @ np.linalg.solve(gram, self._constraints(d_rigid))
-        rate = float(np.max(self._k)) * 2.0
-        return np.concatenate([-tangential - rate * restoring, np.zeros_like(mu)])
+            gram = gram + _DAMPING * (1.0 - smallest / _DAMPING_ONSET) ** 2 * np.eye(len(jc))
+        rate = float(np.max(p.values.k)) * 2.0
+        correction = np.linalg.solve(gram, jc @ free - rate * p.constraints(self))
+        return np.concatenate([-free + mobility_jc @ correction, np.zeros_like(p.mu)])
 
     def project(self, y, s):
-        """Nearest admissible positions (Gauss-Newton) and least-squares multipliers."""
+        """Nearest admissible rod angles (Gauss-Newton in the node metric) and
+        least-squares multipliers."""
         top = self.topology
         y = np.array(y, dtype=float)
+        if not top.n_chords:
+            return y
         for _ in range(50):
-            x, mu, d_spring, d_rigid = self._parts(y, s)
-            c = self._constraints(d_rigid)
+            p = self.point(y, s)
+            c = p.constraints(self)
             if np.max(np.abs(c)) < 1e-15 * self.l_ref:
                 break
-            jc = self._constraint_jacobian(d_rigid)
-            y[:top.n_var] -= jc.T @ _solve_gram(jc, c)
-        x, mu, d_spring, d_rigid = self._parts(y, s)
-        jc = self._constraint_jacobian(d_rigid)
-        grad = (self._internal_forces(d_spring, d_rigid, np.zeros_like(mu)) - self._loads)[_FIXED:].ravel()
-        y[top.n_var:] = -_solve_gram(jc, jc @ grad)
+            jc = p.constraint_jacobian(self)
+            mobility_jc = np.linalg.solve(p.metric(self), jc.T)
+            y[:top.n_rods] -= mobility_jc @ _solve_guarded(jc @ mobility_jc, c)
+        p = self.point(y, s)
+        jc = p.constraint_jacobian(self)
+        y[top.n_rods:] = -_solve_gram(jc, jc @ self._unconstrained_gradient(p)) / self.f_ref
+        return y
+
+    def canonical(self, y):
+        """The state with the rod angles wrapped to [-pi, pi) (for comparing states)."""
+        y = np.array(y, dtype=float)
+        n = self.topology.n_rods
+        y[:n] = (y[:n] + math.pi) % (2.0 * math.pi) - math.pi
         return y
 
     # -- reporting ---------------------------------------------------------------
     def angles(self, y, s):
         """Local angles (N x 2): t1 of A1A3 from the module's x axis, t2 of A2A4 from -x."""
-        x = self.nodes(y, s)
-        top = self.topology
-        out = np.empty((self.n, 2))
-        for i in range(self.n):
-            o, a2, a3, a4 = x[top.a1(i)], x[top.a2(i)], x[top.a3(i)], x[top.a4(i)]
-            e = (a2 - o) / np.hypot(*(a2 - o))
-            v3, v4 = a3 - o, a4 - a2
-            out[i, 0] = math.atan2(e[0] * v3[1] - e[1] * v3[0], e @ v3)
-            out[i, 1] = math.atan2(e[0] * v4[1] - e[1] * v4[0], -(e @ v4))
-        return out
+        p = self.point(y, s)
+        frame = np.concatenate([[1.0], p.chords(self)])          # module x axes A1 -> A2
+        frame = frame / np.abs(frame)
+        rods = (p.rods / p.values.rod).reshape(self.n, 2)
+        return np.angle(np.column_stack([rods[:, 0] * frame.conj(), -frame / rods[:, 1]]))
 
     def state_from_angles(self, theta, s):
-        """Forward kinematics from local angles (N x 2), projected onto the constraints."""
+        """Rod angles from local angles (N x 2), projected onto the constraints."""
         theta = np.asarray(theta, dtype=float).reshape(self.n, 2)
-        self._at(s)
-        values = (self.p0 + s * self.dp).reshape(self.n, len(PARAMETER_NAMES))
-        top = self.topology
-        x = np.zeros((top.nodes, 2))
-        x[1] = (self._rho0, 0.0)
+        lengths = self.at(s).rod.reshape(self.n, 2)
+        phi = np.empty((self.n, 2))
+        frame, chord = 0.0, complex(self.at(s).rho0)         # chord: A1(i) -> A2(i)
         for i in range(self.n):
-            o, a2 = x[top.a1(i)], x[top.a2(i)]
-            e = (a2 - o) / np.hypot(*(a2 - o))
-            n = np.array([-e[1], e[0]])
-            v = values[i]
-            t1, t2 = theta[i]
-            x[top.a3(i)] = o + v[_P['L1']] * (math.cos(t1) * e + math.sin(t1) * n)
-            x[top.a4(i)] = a2 + v[_P['L2']] * (-math.cos(t2) * e + math.sin(t2) * n)
-        y = np.concatenate([x[_FIXED:].ravel(), np.zeros(top.n_rigid)])
+            phi[i] = frame + theta[i, 0], frame + math.pi - theta[i, 1]
+            chord = (lengths[i, 0] * cmath.exp(1j * phi[i, 0])
+                     - chord - lengths[i, 1] * cmath.exp(1j * phi[i, 1]))
+            frame = cmath.phase(chord)
+        y = np.concatenate([phi.ravel(), np.zeros(self.topology.n_chords)])
         return self.project(y, s)
 
     def actuator_forces(self, y, s):
-        """dU*/d rho of every module (N): the force each telescopic actuator holds."""
-        x, mu, d_spring, d_rigid = self._parts(y, s)
+        """dU*/d rho of every module (N): the force each telescopic actuator holds.
+
+        Module 0: dL/d rho(0) at fixed state (rho(0) moves A2(0) and every node built on
+        it); module i >= 1: its rod is module i-1's chord, dL/dl = -mu l / l_ref."""
+        p = self.point(y, s)
         forces = np.empty(self.n)
-        internal = self._internal_forces(d_spring, d_rigid, mu)
-        forces[0] = internal[1, 0]                         # A2(0) moves along +x with rho(0)
-        chord = [j for j, (i, p) in enumerate(self.topology.rigid_params) if p == _P['rho']]
-        for module, j in zip(range(1, self.n), chord):
-            forces[module] = -mu[j] * self._len[j] / self.l_ref
+        forces[0] = (float(p.weights @ (p.diff.real * self.topology.element_base))
+                     - p.values.base_load)
+        forces[1:] = -p.mu * p.values.chord / self.l_ref
         return forces
 
     def base_reaction(self, y, s):
-        """Force (2,) and moment about A1(0) that the ground supplies at A1(0) and A2(0)."""
-        x, mu, d_spring, d_rigid = self._parts(y, s)
-        support = self._internal_forces(d_spring, d_rigid, mu)[:_FIXED] - self._loads[:_FIXED]
+        """Force (2,) and moment about A1(0) that the ground supplies at A1(0) and A2(0).
+
+        From node statics in Cartesian coordinates: the axial forces of every rod and
+        chord are the least-squares solution of the equilibrium of the moving nodes,
+        and the ground balances what the springs and rods attached to the base exert."""
+        top = self.topology
+        x = self.nodes(y, s)
+        p = self.point(y, s)
+        ns = top.n_springs
+        gradient = -self.loads(s)
+        for (a, b), k in zip(top.element_ends[:ns], p.values.k):
+            gradient[a] += k * (x[a] - x[b])
+            gradient[b] -= k * (x[a] - x[b])
+        rigid = top.rod_ends + top.element_ends[ns:]
+        columns = np.zeros((top.nodes, 2, len(rigid)))
+        for j, (a, b) in enumerate(rigid):
+            columns[a, :, j] += x[a] - x[b]
+            columns[b, :, j] -= x[a] - x[b]
+        moving = columns[_FIXED:].reshape(-1, len(rigid))
+        tension = np.linalg.lstsq(moving, -gradient[_FIXED:].ravel(), rcond=None)[0]
+        support = gradient[:_FIXED] + columns[:_FIXED] @ tension
         moment = float(np.sum(x[:_FIXED, 0] * support[:, 1] - x[:_FIXED, 1] * support[:, 0]))
         return support.sum(axis=0), moment
 
     def total_load(self, y, s):
         """Resultant external force (2,) and its moment about A1(0), all nodes."""
         x = self.nodes(y, s)
-        loads = self._loads
+        loads = self.loads(s)
         return loads.sum(axis=0), float(np.sum(x[:, 0] * loads[:, 1] - x[:, 1] * loads[:, 0]))
 
     def head_pose(self, y, s):
@@ -424,6 +647,9 @@ class StackEquilibrium:
     state: np.ndarray
     head_position: np.ndarray
     head_angle: float
+    #: The stack parameter vector (bytes) this state was verified at, so that tracking
+    #: from it can reuse ``eigenvalues``.
+    parameters: bytes = field(default=None, repr=False, compare=False)
 
     @property
     def stable(self):
@@ -435,13 +661,19 @@ class StackEquilibrium:
         return float(self.eigenvalues[0])
 
 
-def _record(path, y, s):
-    head_position, head_angle = path.head_pose(y, s)
+def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
+    nodes = path.nodes(y, s)
+    top = path.topology
+    a3, a4 = nodes[top.a3(path.n - 1)], nodes[top.a4(path.n - 1)]
+    head = a3 - a4
     return StackEquilibrium(
-        theta=path.angles(y, s), nodes=path.nodes(y, s), eigenvalues=path.eigenvalues(y, s),
-        energy=path.energy(y, s), actuator_forces=path.actuator_forces(y, s),
-        residual=float(np.max(np.abs(path.residual(y, s)))), state=np.array(y),
-        head_position=head_position, head_angle=head_angle)
+        theta=path.angles(y, s), nodes=nodes,
+        eigenvalues=path.eigenvalues(y, s) if eigenvalues is None else eigenvalues,
+        energy=path.energy(y, s) if energy is None else energy, actuator_forces=path.actuator_forces(y, s),
+        residual=float(np.max(np.abs(path.residual(y, s)))) if residual is None else residual,
+        state=np.array(y),
+        head_position=0.5 * (a3 + a4), head_angle=math.atan2(head[1], head[0]),
+        parameters=path.parameter_vector(s).tobytes())
 
 
 def stack_equilibrium_at(stack: Stack, state) -> StackEquilibrium:
@@ -471,6 +703,90 @@ class StackTrack:
     status: str = 'ok'
     message: str = ''
     steps: int = 0
+
+
+def _inf_norm(v):
+    """max |v_i| (0 for an empty vector); in Python, cheaper than numpy for a few entries
+    (it may miss a NaN: every step that matters ends with a numpy residual test)."""
+    return max(map(abs, v.tolist()), default=0.0)
+
+
+def _newton(path, y, s, tol, iterations):
+    """The tracker's corrector (Newton while it contracts, to rounding level; ``None``
+    unless the residual ends within ``tol``), with the Jacobian of the first iterate
+    kept (LU factors reused): on a small step the iterates move by ~1e-6, so the
+    contraction stays fast.  An update at rounding level is not applied (the point
+    is converged; its residual is already known), so the answer is the tracker's to
+    rounding with one evaluation less."""
+    previous = math.inf
+    f = path.residual(y, s)
+    lu, pivots, info = _dgetrf(path.jacobian(y, s))
+    if info != 0:
+        return None
+    for _ in range(iterations):
+        delta, _ = _dgetrs(lu, pivots, f)
+        size = _inf_norm(delta)
+        if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
+            break
+        if size <= 1e-14 * (1.0 + _inf_norm(y)):
+            break
+        y = y - delta
+        f = path.residual(y, s)
+        previous = size
+    residual = float(np.abs(f).max())          # numpy: a NaN anywhere fails the test
+    return (y, residual) if residual <= tol else (None, residual)
+
+
+def _whole_command_step(path, y, settings, known=None):
+    """The tracker's first step when it spans the whole command: (state, eigenvalues) at
+    s = 1, or ``None`` wherever the tracker would do anything else.
+
+    A small command is one continuation step, verified exactly as the tracker verifies
+    a step (:func:`~.continuation.track`): a stable equilibrium at s = 0; the step within
+    ``max_state_step`` and within the eigenvalue-halving bound from d lambda_min / ds;
+    Newton contracting to a point near the prediction; the energy change matching the
+    envelope theorem; the reduced Hessian positive definite at s = 1.  Anything else (a
+    longer command, a soft mode, an event) returns ``None`` and the tracker runs in
+    full.  This is the same work without the tracker's generality (no step loop,
+    no second Newton at s = 0, no re-evaluation of what is already known: ``known`` is
+    the :class:`StackEquilibrium` of ``y`` when it was verified at the start parameters,
+    whose eigenvalues, residual and energy are those at s = 0)."""
+    cfg = settings
+    eigenvalues = path.eigenvalues(y, 0.0) if known is None else known.eigenvalues
+    scale = max(abs(eigenvalues[-1]), 1e-300)
+    floor = scale * 1e-3
+
+    def definite(values):
+        return values[0] > cfg.definiteness_tol * max(abs(values[-1]), floor)
+
+    tol = cfg.residual_tol * scale
+    weights = path.state_weights
+    residual0 = _inf_norm(path.residual(y, 0.0)) if known is None else known.residual
+    if not definite(eigenvalues) or residual0 > tol:
+        return None
+    try:
+        tangent = -_solve(path.jacobian(y, 0.0), path.residual_s(y, 0.0))
+    except np.linalg.LinAlgError:
+        return None
+    reach = _inf_norm(weights * tangent)
+    if not reach <= cfg.max_state_step:
+        return None
+    energy0 = path.energy(y, 0.0) if known is None else known.energy
+    energy_s0 = path.energy_s(y, 0.0)
+    h = 1e-6                                  # the tracker's d lambda_min / ds
+    rate = (path.eigenvalues(y + h * tangent, h)[0] - eigenvalues[0]) / h
+    if rate < 0.0 and (1.0 - cfg.eigenvalue_shrink) * eigenvalues[0] < -rate:
+        return None
+    predicted = y + tangent
+    y1, residual = _newton(path, predicted, 1.0, tol, cfg.newton_iterations)
+    if y1 is None or _inf_norm(weights * (y1 - predicted)) > 0.5 * reach + 1e-9:
+        return None
+    energy1, energy_s1 = path.energy_and_rate(y1, 1.0)
+    slack = 1e-9 * (abs(energy0) + abs(energy1) + scale) + 0.5 * abs(energy_s1 - energy_s0)
+    if abs((energy1 - energy0) - 0.5 * (energy_s0 + energy_s1)) > slack:
+        return None
+    eigenvalues1 = path.eigenvalues(y1, 1.0)
+    return (y1, eigenvalues1, energy1, residual) if definite(eigenvalues1) else None
 
 
 def _checked_angles(theta, n):
@@ -503,6 +819,12 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
         arr = np.asarray(state_or_theta, dtype=float)
         y0 = arr if arr.shape == (path.size,) else path.state_from_angles(
             _checked_angles(arr, len(start)), 0.0)
+    known = (state_or_theta if isinstance(state_or_theta, StackEquilibrium)
+             and state_or_theta.parameters == path.p0.tobytes() else None)
+    quick = _whole_command_step(path, y0, settings, known)
+    if quick is not None:
+        return StackTrack(final=_record(path, quick[0], 1.0, *quick[1:]), end=end, jumps=(),
+                          steps=1)
     try:
         result = _continuation.track(path, y0, settings)
     except _continuation.TrackingError:
@@ -518,6 +840,13 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
                       message=result.message, steps=result.steps)
 
 
+def _angle_distance(path, a, b):
+    """Largest difference of the rod angles of two states, modulo 2 pi."""
+    n = path.topology.n_rods
+    d = (np.asarray(a[:n]) - np.asarray(b[:n]) + math.pi) % (2.0 * math.pi) - math.pi
+    return float(np.max(np.abs(d)))
+
+
 def stack_equilibria(stack: Stack, starts=64, seed=0):
     """Equilibria of a stack by multi-start search (for tests and the CLI), sorted by energy.
 
@@ -530,13 +859,12 @@ def stack_equilibria(stack: Stack, starts=64, seed=0):
     """
     path = StackPath(stack, stack)
     rng = np.random.default_rng(seed)
-    n_var = path.topology.n_var
     scale = float(np.max([max(m.ka, m.kb, m.kc) for m in stack.modules]))
     found = []
 
     def add(y):
         if (np.all(np.isfinite(y)) and np.max(np.abs(path.residual(y, 0.0))) <= 1e-9 * scale
-                and all(np.max(np.abs(y[:n_var] - f[:n_var])) >= 1e-7 for f in found)):
+                and all(_angle_distance(path, y, f) >= 1e-7 for f in found)):
             found.append(y)
 
     for _ in range(starts):

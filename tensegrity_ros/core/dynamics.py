@@ -91,7 +91,16 @@ class SnapHistory:
 @dataclass(frozen=True)
 class Snap:
     """Result of :func:`simulate_snap`: the history, the summary and the quasi-static
-    prediction beside it.  ``static_fold_rho`` is the tracker's first jump (or None)."""
+    prediction beside it.  ``static_fold_rho`` is the tracker's first jump (or None).
+
+    ``summary`` keys: ``onset_rho`` (rho when either |theta'| first exceeds
+    ONSET_SPEED, or None), ``onset_time``, ``peak_speed`` (rad/s), ``peak_actuator_force``
+    (N, signed, largest magnitude), ``overshoot`` (rad past the final angle after the
+    onset), ``settle_time`` (s from the onset, or from the ramp's end if nothing snapped,
+    until within SETTLE_TOLERANCE for good; None if not settled), ``settled``, ``final``
+    ({theta1, theta2, speed} at the end), ``quasi_static`` (the tracker's jumps and final
+    state) and ``lands_elsewhere`` (the rest state is not the tracker's).
+    """
 
     history: SnapHistory
     summary: dict

@@ -133,6 +133,11 @@ class _Module:
         return 0.5 * float(self.inertia @ y[2:] ** 2) + 0.5 * float(delta @ h @ delta)
 
     @staticmethod
+    def after_ramp(y):
+        """The angle rates carry on when rho stops (its rho'' impulse is neglected)."""
+        return y
+
+    @staticmethod
     def onset_events():
         """Event functions: either rod's |theta'| crosses ONSET_SPEED."""
         def rod1(t, y):

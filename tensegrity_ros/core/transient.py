@@ -109,12 +109,13 @@ def _integrate(system, y0, t0, t1, settings):
 def run(system, y0, hold, settings):
     """Integrate the ramp, then the hold (``hold`` s, or until ``system.settled(y)``
     returns the rest angles, at most MAX_HOLD); returns (OdeSolution, onset events,
-    rest angles or None)."""
+    rest angles or None).  ``system.after_ramp(y)`` maps the state across the ramp's
+    end, where the actuator velocities step to zero."""
     ramp_end = system.ramp.duration
     pieces = []
     if ramp_end > 0.0:
         pieces.append(_integrate(system, y0, 0.0, ramp_end, settings))
-        y0 = pieces[-1].y[:, -1]
+        y0 = system.after_ramp(pieces[-1].y[:, -1])
     limit = MAX_HOLD if hold is None else hold
     t, settled = ramp_end, None
     while t < ramp_end + limit:

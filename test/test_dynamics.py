@@ -167,7 +167,7 @@ def test_slow_ramps_start_the_snap_at_the_fold_later_by_rate_to_the_two_thirds()
 
 
 def _gradient_flow_landing(p, rho1, rate, c, theta0, t_end):
-    """c theta' = -dU/dtheta with the same ramp; the gradient by complex steps of the energy here."""
+    """c theta' = -dU/dtheta with the same ramp (gradient: complex steps of the energy here)."""
     duration = abs(rho1 - p.rho) / rate
 
     def rhs(t, th):

@@ -29,24 +29,11 @@ from . import module as _m
 from . import transient
 from .module import InvalidParameterError, ModuleParams
 from .tracking import ModulePath, ModuleTrack, settle, track_module
-from .transient import (MAX_HOLD, ONSET_SPEED, SETTLE_TOLERANCE, RhoRamp, SolverSettings,
-                        wrap as _wrap)
+from .transient import (MAX_HOLD, ONSET_SPEED, SETTLE_TOLERANCE, RhoRamp, SnapHistory,
+                        SolverSettings, wrap as _wrap)
 
 #: Landings closer than this (rad, per angle) are the same equilibrium.
 SAME_LANDING = 1e-4
-
-
-@dataclass(frozen=True)
-class SnapHistory:
-    """Time history of a simulation: ``t`` (s), ``rho`` (m), ``theta`` and
-    ``theta_dot`` (shape (n, 2), rad and rad/s), ``actuator_force`` (N, along +x
-    on A2, including rod 2's dynamic reaction)."""
-
-    t: np.ndarray
-    rho: np.ndarray
-    theta: np.ndarray
-    theta_dot: np.ndarray
-    actuator_force: np.ndarray
 
 
 @dataclass(frozen=True)

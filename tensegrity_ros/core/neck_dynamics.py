@@ -28,7 +28,8 @@ from scipy.linalg import null_space
 from . import transient
 from .module import InvalidParameterError
 from .stack import Stack, StackTrack, settle_stack, track_stack
-from .transient import ONSET_SPEED, SETTLE_TOLERANCE, RhoRamp, SolverSettings, wrap
+from .transient import (ONSET_SPEED, SETTLE_TOLERANCE, RhoRamp, SnapHistory, SolverSettings,
+                        wrap)
 
 #: Baumgarte stabilisation rate (1/s) of the length constraints.
 BAUMGARTE = 20.0
@@ -37,24 +38,12 @@ SAME_LANDING = 1e-4
 
 
 @dataclass(frozen=True)
-class NeckSnapHistory:
-    """``t`` (s), ``rho`` (n, N), ``theta`` and ``theta_dot`` (n, N, 2) local angles and
-    their rates, ``actuator_force`` (n, N) (N, including the rods' inertia)."""
-
-    t: np.ndarray
-    rho: np.ndarray
-    theta: np.ndarray
-    theta_dot: np.ndarray
-    actuator_force: np.ndarray
-
-
-@dataclass(frozen=True)
 class NeckSnap:
     """Result of :func:`simulate_neck_snap`: history, summary (the keys of
     :class:`~.dynamics.Snap`; ``onset_rho`` one per module, ``final`` as
     ``{"theta": N x 2, "speed"}``) and the tracker's prediction."""
 
-    history: NeckSnapHistory
+    history: SnapHistory
     summary: dict
     quasi_static: StackTrack
     solution: OdeSolution = field(repr=False)
@@ -295,7 +284,7 @@ def simulate_neck_snap(stack: Stack, rho_end, rate: float, damping: float, theta
 
     theta, omega = angles_rates(ts)
     force = forces(ts)
-    history = NeckSnapHistory(t=ts, rho=ramp.rho(ts), theta=theta.reshape(-1, n, 2),
+    history = SnapHistory(t=ts, rho=ramp.rho(ts), theta=theta.reshape(-1, n, 2),
                               theta_dot=omega.reshape(-1, n, 2), actuator_force=force)
     onset = min(events) if events else None
     summary = {'onset_rho': None if onset is None else ramp.rho(onset).tolist(),

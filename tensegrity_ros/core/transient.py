@@ -75,6 +75,20 @@ class RhoRamp:
 
 
 @dataclass(frozen=True)
+class SnapHistory:
+    """Time history of a transient: ``t`` (s, n samples), ``rho`` (m), ``theta`` and
+    ``theta_dot`` (rad, rad/s), ``actuator_force`` (N, inertia included).  One module:
+    shapes (n,), (n, 2), (n, 2), (n,); a neck of N modules: (n, N), (n, N, 2), (n, N, 2),
+    (n, N)."""
+
+    t: np.ndarray
+    rho: np.ndarray
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    actuator_force: np.ndarray
+
+
+@dataclass(frozen=True)
 class SolverSettings:
     """solve_ivp settings: tolerances that keep the reported figures to 0.1 %."""
 

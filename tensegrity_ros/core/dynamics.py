@@ -57,7 +57,7 @@ class Snap:
     solution: OdeSolution = field(repr=False)
 
 
-class _Module:
+class ModuleEquations:
     """The equations of motion of one module along a rho ramp."""
 
     def __init__(self, params: ModuleParams, ramp: RhoRamp, damping: float):
@@ -184,7 +184,7 @@ def simulate_snap(params: ModuleParams, rho_end: float, rate: float, damping: fl
     """
     transient.checked_hold(hold)
     ramp = RhoRamp(float(params.rho), float(rho_end), float(rate))
-    system = _Module(params, ramp, damping)
+    system = ModuleEquations(params, ramp, damping)
     start = settle(system.start, theta_guess)
     solution, events, rest = transient.run(system, np.array([*start.theta, 0.0, 0.0]), hold,
                                            settings)

@@ -1,0 +1,92 @@
+"""The node's parameters as ROS declares them: descriptors, types, node-wide settings.
+
+The per-module parameters and the way from their values to the simulator's
+configuration are ROS-free, in :mod:`tensegrity_ros.module_parameters` (shared with the
+parameter files of the offline tools); their names are re-exported here so that the
+node reads all of its parameters through this module.  ``MODULE_PARAMETERS`` (per
+module, ``<m>.<name>``) and ``NODE_PARAMETERS`` are the parameter contract (DESIGN.md
+section 5; README's parameter table mirrors them).
+"""
+from __future__ import annotations
+
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.parameter import Parameter
+
+from tensegrity_ros.module_parameters import (
+    FORCE, INITIAL, LIMIT, MODULE_PARAMETERS, PHYSICAL, SETTING, check_module_values,
+    design_changes, initial_params, kind_of, module_getter, module_limits, module_params)
+
+__all__ = [
+    'MAX_MODULES', 'DOUBLE', 'DOUBLE_ARRAY', 'STRING', 'STRING_ARRAY', 'NODE_PARAMETERS',
+    'descriptor', 'declarations', 'parameter_types', 'check_node_values',
+    # per-module parameters (module_parameters), for the node
+    'FORCE', 'INITIAL', 'LIMIT', 'MODULE_PARAMETERS', 'PHYSICAL', 'SETTING',
+    'check_module_values', 'design_changes', 'initial_params', 'kind_of', 'module_getter',
+    'module_limits', 'module_params',
+]
+
+#: How many modules one node hosts at most (a stack of N modules has 4N coupled unknowns;
+#: a command costs ~N^2 * 0.1 ms).
+MAX_MODULES = 20
+
+
+def descriptor(description, *, type_, constraints='', read_only=False, range_=None):
+    d = ParameterDescriptor(description=description, type=type_.value,
+                            additional_constraints=constraints, read_only=read_only)
+    if range_ is not None:
+        d.floating_point_range = [FloatingPointRange(from_value=float(range_[0]),
+                                                     to_value=float(range_[1]), step=0.0)]
+    return d
+
+
+DOUBLE = Parameter.Type.DOUBLE
+DOUBLE_ARRAY = Parameter.Type.DOUBLE_ARRAY
+STRING = Parameter.Type.STRING
+STRING_ARRAY = Parameter.Type.STRING_ARRAY
+#: ROS parameter type of a type name of the module parameter table.
+ROS_TYPES = {'double': DOUBLE, 'double_array': DOUBLE_ARRAY}
+
+#: Node-wide parameters: (name, default, type, description, constraints, range, read_only).
+NODE_PARAMETERS = (
+    ('publish_rate', 50.0, DOUBLE,
+     'Rate (Hz) of the joint_states timer; also the segment rate of speed-limited motion and '
+     'the highest rate of equilibrium updates.', '1..1000 Hz', (1.0, 1000.0), False),
+    ('markers_rate', 10.0, DOUBLE, 'Rate (Hz) of the markers topic; 0 = off.', '0..100 Hz',
+     (0.0, 100.0), False),
+    ('diagnostics_rate', 1.0, DOUBLE, 'Rate (Hz) of /diagnostics.', '0.1..100 Hz',
+     (0.1, 100.0), False),
+    ('frame_id', 'tensegrity_base', STRING,
+     'Frame of the markers and head_pose: the base frame of the bottom module (origin A1, '
+     'x along A1->A2, y up).',
+     'non-empty', None, False),
+)
+_NODE_SPEC = {p[0]: p for p in NODE_PARAMETERS}
+
+
+def declarations(names):
+    """(name, default, ParameterDescriptor) of every node and module parameter."""
+    out = []
+    for name, default, type_, description, constraints, range_, read_only in NODE_PARAMETERS:
+        out.append((name, default, descriptor(description, type_=type_, constraints=constraints,
+                                               range_=range_, read_only=read_only)))
+    for m in names:
+        for name, default, type_, _kind, description, constraints, range_ in MODULE_PARAMETERS:
+            out.append((f'{m}.{name}', default, descriptor(
+                description, type_=ROS_TYPES[type_], constraints=constraints, range_=range_)))
+    return out
+
+
+def parameter_types(names):
+    """{parameter name: Parameter.Type} of every declared parameter."""
+    types = {name: spec[2] for name, spec in _NODE_SPEC.items()}
+    for m in names:
+        types.update({f'{m}.{name}': ROS_TYPES[spec[2]] for spec in MODULE_PARAMETERS
+                      for name in (spec[0],)})
+    return types
+
+
+def check_node_values(values):
+    """Why the node-wide parameter values are refused, or '' if they are fine."""
+    if not values['frame_id']:
+        return 'frame_id must not be empty'
+    return ''

@@ -29,12 +29,8 @@ from . import module as _m
 from . import transient
 from .module import InvalidParameterError, ModuleParams
 from .tracking import ModulePath, ModuleTrack, settle, track_module
-from .transient import (MAX_HOLD, ONSET_SPEED, SETTLE_TOLERANCE, RhoRamp, SnapHistory,
-                        SolverSettings, wrap as _wrap)
-
-#: Landings closer than this (rad, per angle) are the same equilibrium.
-SAME_LANDING = 1e-4
-
+from .transient import (MAX_HOLD, ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, RhoRamp,
+                        SnapHistory, SolverSettings, wrap as _wrap)
 
 @dataclass(frozen=True)
 class Snap:
@@ -192,21 +188,27 @@ def simulate_snap(params: ModuleParams, rho_end: float, rate: float, damping: fl
     y = solution(ts).T
     history = SnapHistory(t=ts, rho=ramp.rho(ts), theta=y[:, :2].copy(),
                           theta_dot=y[:, 2:].copy(), actuator_force=system.actuator_force(ts, y))
+    track = track_module(system.start, system.end, start.theta)
+    fold = float(track.jumps[0].params.rho) if track.jumps else None
+    return Snap(history=history, summary=_summary(system, solution, history, events, rest, track),
+                quasi_static=track, static_fold_rho=fold, solution=solution)
+
+
+def _summary(system, solution, history, events, rest, track):
+    """The issue's figures of the run, the final state, the quasi-static prediction."""
+    ramp = system.ramp
     onset = min(events) if events else None
     summary = {'onset_rho': None if onset is None else float(ramp.rho(onset)),
                'onset_time': onset}
     summary.update(transient.figures(
-        ts, lambda t: solution(t).T[:, :2], lambda t: solution(t).T[:, 2:],
+        history.t, lambda t: solution(t).T[:, :2], lambda t: solution(t).T[:, 2:],
         lambda t: system.actuator_force(t, solution(t).T)[:, None], onset, rest,
         ramp.duration))
-    y_end = y[-1]
-    summary['final'] = {'theta1': float(_wrap(y_end[0])), 'theta2': float(_wrap(y_end[1])),
-                        'speed': float(np.max(np.abs(y_end[2:])))}
-    track = track_module(system.start, system.end, start.theta)
-    summary.update(_beside_quasi_static(track, rest if rest is not None else y_end[:2]))
-    fold = float(track.jumps[0].params.rho) if track.jumps else None
-    return Snap(history=history, summary=summary, quasi_static=track, static_fold_rho=fold,
-                solution=solution)
+    theta, speed = history.theta[-1], history.theta_dot[-1]
+    summary['final'] = {'theta1': float(_wrap(theta[0])), 'theta2': float(_wrap(theta[1])),
+                        'speed': float(np.max(np.abs(speed)))}
+    summary.update(_beside_quasi_static(track, rest if rest is not None else theta))
+    return summary
 
 
 __all__ = ['RhoRamp', 'SnapHistory', 'Snap', 'SolverSettings', 'simulate_snap',

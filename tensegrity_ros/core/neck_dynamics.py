@@ -28,13 +28,11 @@ from scipy.linalg import null_space
 from . import transient
 from .module import InvalidParameterError
 from .stack import Stack, StackTrack, settle_stack, track_stack
-from .transient import (ONSET_SPEED, SETTLE_TOLERANCE, RhoRamp, SnapHistory, SolverSettings,
-                        wrap)
+from .transient import (ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, RhoRamp, SnapHistory,
+                        SolverSettings, wrap)
 
 #: Baumgarte stabilisation rate (1/s) of the length constraints.
 BAUMGARTE = 20.0
-#: Landings closer than this (rad, per angle) are the same equilibrium.
-SAME_LANDING = 1e-4
 
 
 @dataclass(frozen=True)
@@ -263,44 +261,61 @@ def simulate_neck_snap(stack: Stack, rho_end, rate: float, damping: float, theta
     at ``rate`` (m/s, the largest change), then hold (``hold`` s, or until settled for
     good, at most MAX_HOLD).  Starts in the stable equilibrium of ``theta_guess`` (N x 2)."""
     transient.checked_hold(hold)
-    n = len(stack)
-    rho0 = np.array([m.rho for m in stack.modules])
-    rho1 = _rho_vector(rho_end, n, 'rho_end')
+    rho1 = _rho_vector(rho_end, len(stack), 'rho_end')
     end = Stack(tuple(m.with_(rho=float(r)) for m, r in zip(stack.modules, rho1)))
-    ramp = RhoRamp(tuple(rho0), tuple(rho1), float(rate))
+    ramp = RhoRamp(tuple(m.rho for m in stack.modules), tuple(rho1), float(rate))
     system = _Neck(stack, ramp, damping)
     start = settle_stack(stack, theta_guess)
     solution, events, rest = transient.run(system, system.start_state(start.nodes), hold,
                                            settings)
+    reader = _Reader(system, solution)
     ts = transient.sample_times(solution)
-
-    def angles_rates(t):
-        pairs = [system.rates(tk, yk) for tk, yk in zip(np.atleast_1d(t), solution(t).T)]
-        return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
-
-    def forces(t):
-        return np.array([system.actuator_forces(tk, yk)
-                         for tk, yk in zip(np.atleast_1d(t), solution(t).T)])
-
-    theta, omega = angles_rates(ts)
-    force = forces(ts)
-    history = SnapHistory(t=ts, rho=ramp.rho(ts), theta=theta.reshape(-1, n, 2),
-                              theta_dot=omega.reshape(-1, n, 2), actuator_force=force)
+    theta, omega = reader.angles_and_rates(ts)
+    shape = (-1, len(stack), 2)
+    history = SnapHistory(t=ts, rho=ramp.rho(ts), theta=theta.reshape(shape),
+                          theta_dot=omega.reshape(shape), actuator_force=reader.forces(ts))
     onset = min(events) if events else None
     summary = {'onset_rho': None if onset is None else ramp.rho(onset).tolist(),
                'onset_time': onset}
-    summary.update(transient.figures(ts, lambda t: angles_rates(t)[0],
-                                     lambda t: angles_rates(t)[1], forces, onset, rest,
-                                     ramp.duration))
-    summary['final'] = {'theta': theta[-1].reshape(n, 2).tolist(),
+    summary.update(transient.figures(ts, reader.angles, reader.rates, reader.forces, onset,
+                                     rest, ramp.duration))
+    summary['final'] = {'theta': theta[-1].reshape(shape[1:]).tolist(),
                         'speed': float(np.max(np.abs(omega[-1])))}
     track = track_stack(stack, end, start)
-    predicted = track.final.theta.ravel()
-    landed = rest if rest is not None else theta[-1]
-    summary['quasi_static'] = {
-        'jumps': [{'kind': j.kind, 'rho': [m.rho for m in j.stack.modules],
-                   'theta': np.asarray(j.from_theta).tolist(),
-                   'landing': np.asarray(j.to_theta).tolist()} for j in track.jumps],
-        'final': {'theta': track.final.theta.tolist()}, 'status': track.status}
-    summary['lands_elsewhere'] = bool(np.max(np.abs(wrap(landed - predicted))) > SAME_LANDING)
+    summary.update(_beside_quasi_static(track, rest if rest is not None else theta[-1]))
     return NeckSnap(history=history, summary=summary, quasi_static=track, solution=solution)
+
+
+class _Reader:
+    """Local angles, their rates and the actuator forces of the dense solution at times t."""
+
+    def __init__(self, system, solution):
+        self.system, self.solution = system, solution
+
+    def _each(self, t, f):
+        t = np.atleast_1d(t)
+        return np.array([f(tk, yk) for tk, yk in zip(t, self.solution(t).T)])
+
+    def angles_and_rates(self, t):
+        both = self._each(t, lambda tk, yk: np.stack(self.system.rates(tk, yk)))
+        return both[:, 0], both[:, 1]
+
+    def angles(self, t):
+        return self.angles_and_rates(t)[0]
+
+    def rates(self, t):
+        return self.angles_and_rates(t)[1]
+
+    def forces(self, t):
+        return self._each(t, self.system.actuator_forces)
+
+
+def _beside_quasi_static(track, landed):
+    """The stack tracker's prediction, and whether inertia lands the neck elsewhere."""
+    predicted = track.final.theta.ravel()
+    return {'quasi_static': {
+                'jumps': [{'kind': j.kind, 'rho': [m.rho for m in j.stack.modules],
+                           'theta': np.asarray(j.from_theta).tolist(),
+                           'landing': np.asarray(j.to_theta).tolist()} for j in track.jumps],
+                'final': {'theta': track.final.theta.tolist()}, 'status': track.status},
+            'lands_elsewhere': bool(np.max(np.abs(wrap(landed - predicted))) > SAME_LANDING)}

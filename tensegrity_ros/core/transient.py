@@ -24,6 +24,8 @@ ONSET_SPEED = 1.0
 SETTLE_TOLERANCE = 1e-6
 #: Longest hold (s) when the hold is "until settled".
 MAX_HOLD = 60.0
+#: Rest states closer than this (rad, per angle) are the same equilibrium.
+SAME_LANDING = 1e-4
 
 
 @dataclass(frozen=True)

@@ -4,8 +4,10 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
 
-from tensegrity_ros.core import InvalidParameterError, ModuleParams, actuator_force, simulate_snap
+from tensegrity_ros.core import (InvalidParameterError, ModuleParams, actuator_force, settle,
+                                 simulate_snap)
 from tensegrity_ros.core.moving_module import MovingModule
 
 FIG8A = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)
@@ -74,3 +76,21 @@ def test_time_never_goes_back():
     live = MovingModule(FIG8A, LOWER, damping=0.05, max_rate=0.1, t=5.0)
     with pytest.raises(InvalidParameterError, match='time must not go back'):
         live.advance(4.0)
+
+
+@settings(max_examples=6, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(st.floats(0.0, 0.5), st.floats(0.3, 1.2)), min_size=1, max_size=4))
+def test_any_command_sequence_ends_at_rest_on_a_stable_equilibrium_of_the_last_target(commands):
+    live = MovingModule(FIG8A, LOWER, damping=1.0, max_rate=0.5)
+    t = 0.0
+    for wait, target in commands:
+        t += wait
+        live.command(target, t)
+    while live.moving and live.t < t + 30.0:
+        live.advance(live.t + 0.25)
+    assert not live.moving and live.rho == commands[-1][1]
+    rest = settle(FIG8A.with_(rho=live.rho), live.theta)
+    assert rest.stable
+    assert np.max(np.abs(live.theta - rest.theta)) < 1e-6
+    assert np.max(np.abs(live.theta_dot)) < 1e-6

@@ -39,6 +39,7 @@ class MovingModule:
         self.y = np.array([*start.theta, 0.0, 0.0])
         self.rho = self.target = float(params.rho)
         self._record = None            # the snap under way: segments, interpolants, events
+        self._at_rest = True
         self._segment(self.t)
 
     # -- what it is now ----------------------------------------------------------------
@@ -58,8 +59,9 @@ class MovingModule:
 
     @property
     def moving(self):
-        """True while rho moves or a snap has not come to rest."""
-        return self.rho != self.target or self._record is not None
+        """True until the rods are at rest (within SETTLE_TOLERANCE for good) at the
+        target."""
+        return not self._at_rest
 
     # -- driving it ----------------------------------------------------------------------
     def command(self, rho_target, t):
@@ -75,8 +77,9 @@ class MovingModule:
                                         f'got {rho_target!r}') from None
         self.params.with_(rho=target)                 # validates (finite, positive, range)
         reports = self.advance(t)
-        self.target = target
-        self._segment(self.t)
+        if target != self.target:
+            self.target, self._at_rest = target, False
+            self._segment(self.t)
         return reports
 
     def advance(self, t):
@@ -91,7 +94,7 @@ class MovingModule:
             if self.t >= ramp_end and self.rho != self.target:
                 self.rho = self.target                 # the ramp's end: held from here
                 self._segment(self.t)
-            report = self._rest_report()
+            report = self._rest_report() if self._now_at_rest() else None
             if report is not None:
                 reports.append(report)
         return reports
@@ -123,13 +126,18 @@ class MovingModule:
         self.t, self.y = float(stop), sol.y[:, -1]
         self.rho = float(system.ramp.rho(self.t - t0))
 
+    def _now_at_rest(self):
+        """True on the call at which the rods come to rest at the held target."""
+        if self._at_rest or self.rho != self.target:
+            return False
+        self._rest = self._system.settled(self.y)
+        self._at_rest = self._rest is not None
+        return self._at_rest
+
     def _rest_report(self):
-        """The figures of the snap under way once it is at rest (held rho), else None."""
-        record = self._record
-        if record is None or self.rho != self.target:
-            return None
-        rest = self._system.settled(self.y)
-        if rest is None:
+        """The figures of the snap that has just come to rest (None if nothing snapped)."""
+        record, rest = self._record, self._rest
+        if record is None:
             return None
         self._record = None
         solution = OdeSolution(np.array(record['ts']), record['interpolants'])

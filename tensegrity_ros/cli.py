@@ -13,6 +13,7 @@ Subcommands::
                        [--track R0 R1 ...]
     tensegrity range   --rho R [--theta1 T1 --theta2 T2] [params] [--json]
     tensegrity limit   --L2 X [--pushing] [--json]
+    tensegrity snap    --rho R0 --to-rho R1 --rate V --damping C --m1 M --m2 M [...]  (dynamics)
 
 Units are SI (m, N, N/m, kg); angles are radians on input and in JSON/CSV, the
 human-readable tables show degrees.  The paper's F3, F4 are the vertical force
@@ -37,6 +38,7 @@ import sys
 
 import numpy as np
 
+from . import snap_command
 from .core import InvalidParameterError, ModuleParams, equilibria, track_module
 from .core.start_state import start_state, upright_guess
 from .problem import (APPLY_ORDER, DEFAULT_FIELDS, PARAMETERS, describe, describe_modules,
@@ -268,6 +270,9 @@ def build_parser():
                    help='pushing forces (F3, F4 < 0) instead of pulling')
     p.add_argument('--json', action='store_true', help='machine-readable output')
     p.set_defaults(func=cmd_limit)
+
+    snap_command.add_snap_parser(sub, _add_parameter_options, finite_float).set_defaults(
+        func=cmd_snap)
     return parser
 
 
@@ -998,6 +1003,13 @@ def cmd_limit(args, out):
     out.write('  the 2-stable region reaches C along (d rho, d F3, d F4) = '
               f'({c.axis[0]:.6f}, {c.axis[1]:.6f}, {c.axis[2]:.6f})\n')
     return EXIT_OK
+
+
+def cmd_snap(args, out):
+    """``snap``: the module and start as ``track`` parses them; the rest in snap_command."""
+    start = make_params(_values(args))
+    return snap_command.run_snap(args, out, start,
+                                 start_equilibrium(start, _start_guess(args)).theta)
 
 
 # ---------------------------------------------------------------------------

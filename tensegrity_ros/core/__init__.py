@@ -7,6 +7,7 @@ from .continuation import (PathProblem, TrackerSettings, Track, Event, TrackingE
                            FOLD, BRANCH_POINT)
 from .tracking import (ModuleJump, ModuleTrack, ModulePath, track_module, settle,
                        equilibrium_at)
+from .dynamics import RhoRamp, Snap, SnapHistory, simulate_snap
 
 __all__ = [
     'ModuleParams', 'InvalidParameterError', 'PARAMETER_NAMES', 'STANDARD_GRAVITY',
@@ -16,4 +17,5 @@ __all__ = [
     'PathProblem', 'TrackerSettings', 'Track', 'Event', 'TrackingError', 'track',
     'FOLD', 'BRANCH_POINT',
     'ModuleJump', 'ModuleTrack', 'ModulePath', 'track_module', 'settle', 'equilibrium_at',
+    'RhoRamp', 'Snap', 'SnapHistory', 'simulate_snap',
 ]

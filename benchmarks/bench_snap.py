@@ -1,0 +1,72 @@
+"""Cost of a snap-through simulation, side by side with the quasi-static tracker.
+
+The fig. 8a fold (rho 0.5 -> 0.9 at 0.1 m/s, 50 g rods) with light and heavy damping,
+held until settled, against track_module on the same path (which the simulation also
+runs, for its prediction beside the dynamic figures).  Then the neck simulator on the
+same one-module problem (node coordinates, ratio vs the module simulator) and on 2 and 3
+modules, and the real-time factor of a MovingModule driven in 10 ms ticks (simulated
+seconds per wall-clock second: above 1 a node could integrate live).
+
+    python benchmarks/bench_snap.py
+"""
+import time
+
+from tensegrity_ros.core import ModuleParams, settle, simulate_snap, track_module
+from tensegrity_ros.core.moving_module import MovingModule
+from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
+from tensegrity_ros.core.stack import Stack
+
+
+def best_of(fn, repeat=3):
+    samples = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        samples.append(time.perf_counter() - t0)
+    return min(samples)
+
+
+def main():
+    p = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)
+    start = settle(p, [-1.0, -1.0])
+    tracker = best_of(lambda: track_module(p, p.with_(rho=0.9), start.theta), 20)
+    print(f'track_module fig. 8a fold (quasi-static): {tracker * 1e3:8.2f} ms')
+    for damping in (0.01, 0.05, 5.0):
+        snap = simulate_snap(p, 0.9, 0.1, damping, [-1.0, -1.0])
+        cost = best_of(lambda: simulate_snap(p, 0.9, 0.1, damping, [-1.0, -1.0]))
+        s = snap.summary
+        print(f'simulate_snap c={damping:<5g} {cost * 1e3:8.1f} ms  ratio vs tracker '
+              f'{cost / tracker:7.0f}  simulated {snap.history.t[-1]:6.2f} s, '
+              f'{len(snap.solution.ts) - 1} solver steps, settle_time {s["settle_time"]:.3g} s')
+    neck_vs_module(p)
+    real_time_factor(p)
+
+
+def neck_vs_module(p):
+    module = best_of(lambda: simulate_snap(p, 0.9, 0.5, 0.2, [-1.0, -1.0]), 2)
+    neck = best_of(lambda: simulate_neck_snap(Stack((p,)), 0.9, 0.5, 0.2, [[-1.0, -1.0]]), 2)
+    print(f'rho 0.5 -> 0.9 at 0.5 m/s, c=0.2: module {module * 1e3:8.1f} ms, neck N=1 '
+          f'{neck * 1e3:8.1f} ms, ratio {neck / module:5.1f}')
+    for n in (2, 3):
+        modules = tuple(ModuleParams(rho=0.6, m1=0.05, m2=0.05) for _ in range(n))
+        guess = [[1.2, 1.2]] + [[1.0, 1.0]] * (n - 1)
+        cost = best_of(lambda: simulate_neck_snap(Stack(modules), [0.45] + [0.62] * (n - 1),
+                                                  0.5, 0.3, guess), 1)
+        print(f'neck N={n}: every rho ramps together, until settled: {cost * 1e3:8.1f} ms')
+
+
+def real_time_factor(p):
+    live = MovingModule(p, [-1.0, -1.0], damping=0.05, max_rate=0.1)
+    live.command(0.9, 0.0)
+    t0 = time.perf_counter()
+    t = 0.0
+    while t < 16.0:
+        t += 0.01
+        live.advance(t)
+    wall = time.perf_counter() - t0
+    print(f'MovingModule, 10 ms ticks through the fig. 8a snap: 16 s simulated in '
+          f'{wall:.2f} s wall, real-time factor {16.0 / wall:.1f}')
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,321 @@
+"""Snap-through dynamics of the neck stack (DESIGN.md sections 4 and 9), same contract as
+:mod:`.dynamics` for one module.
+
+Coordinates are the positions of the moving nodes (A3, A4 of every module, in the
+stack's base frame).  A uniform bar between its pivot P and tip Q has kinetic
+energy ``m/6 (|P'|^2 + P'.Q' + |Q'|^2)``, so the mass matrix is constant, and
+its weight is exactly half at each end.  Rigid lengths (both rods of every
+module; module i's top chord, whose length is module i+1's actuated rho) are
+constraints ``|Xa - Xb|^2 = l(t)^2`` imposed at acceleration level with a
+Baumgarte term; base node A2(0) moves along x with rho of module 0.  Each pivot
+has viscous damping ``c`` on its rod's local angle rate (the dissipation
+``c/2 sum theta_local'^2``).  The actuators are kinematic: every rho runs at
+constant rate (the largest change sets the time) and is then held; module 0's
+actuator force is the x reaction at A2(0), an upper module's is the force along
+the chord that is its telescopic rod (positive pushes apart), both including the
+inertia of the rods.  Local angles follow :mod:`.stack` (t1 of A1A3 from the
+module's x axis, t2 of A2A4 from -x), wrapped to [-pi, pi).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import OdeSolution
+from scipy.linalg import null_space
+
+from . import transient
+from .module import InvalidParameterError
+from .stack import Stack, StackTrack, settle_stack, track_stack
+from .transient import (ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, RhoRamp, SnapHistory,
+                        SolverSettings, wrap)
+
+#: Baumgarte stabilisation rate (1/s) of the length constraints.
+BAUMGARTE = 20.0
+
+
+@dataclass(frozen=True)
+class NeckSnap:
+    """Result of :func:`simulate_neck_snap`: history, summary (the keys of
+    :class:`~.dynamics.Snap`; ``onset_rho`` one per module, ``final`` as
+    ``{"theta": N x 2, "speed"}``) and the tracker's prediction."""
+
+    history: SnapHistory
+    summary: dict
+    quasi_static: StackTrack
+    solution: OdeSolution = field(repr=False)
+
+
+class _Neck:
+    """Equations of motion of an N-module neck in node coordinates along a rho ramp."""
+
+    def __init__(self, start: Stack, ramp: RhoRamp, damping: float):
+        self.n = n = len(start)
+        for i, m in enumerate(start.modules):
+            if m.m1 <= 0.0 or m.m2 <= 0.0:
+                raise InvalidParameterError(f'dynamics needs positive rod masses, got module '
+                                            f'{i}: m1={m.m1!r}, m2={m.m2!r}')
+        self.ramp, self.damping = ramp, transient.checked_damping(damping)
+        self.modules = start.modules
+        a1 = [0] + [3 + 2 * i for i in range(n - 1)]
+        a2 = [1] + [2 + 2 * i for i in range(n - 1)]
+        a3 = [2 + 2 * i for i in range(n)]
+        a4 = [3 + 2 * i for i in range(n)]
+        self.frames = list(zip(a1, a2, a3, a4))
+        self.nodes = 2 + 2 * n
+        mass = np.zeros((self.nodes, self.nodes))
+        loads = np.zeros((self.nodes, 2))
+        springs, rigid = [], []
+        for i, m in enumerate(start.modules):
+            for pivot, tip, rod_mass, length in ((a1[i], a3[i], m.m1, m.L1),
+                                                 (a2[i], a4[i], m.m2, m.L2)):
+                mass[[pivot, tip], [pivot, tip]] += rod_mass / 3.0
+                mass[pivot, tip] += rod_mass / 6.0
+                mass[tip, pivot] += rod_mass / 6.0
+                loads[[pivot, tip], 1] -= 0.5 * rod_mass * m.g
+                rigid.append((pivot, tip, length, None))
+            loads[a3[i]] += (m.f3x, m.f3y)
+            loads[a4[i]] += (m.f4x, m.f4y)
+            springs += [(a2[i], a3[i], m.ka), (a1[i], a4[i], m.kb), (a3[i], a4[i], m.kc)]
+            if i + 1 < n:
+                rigid.append((a3[i], a4[i], None, i + 1))     # chord = rho of module i+1
+        self.mass = np.kron(mass, np.eye(2))[4:, 4:]           # free coordinates only
+        self.mass_to_free = np.kron(mass, np.eye(2))           # full (for the A2(0) reaction)
+        self.loads = loads.ravel()
+        self.springs, self.rigid = springs, rigid
+        self.chord_rows = [j for j, r in enumerate(rigid) if r[3] is not None]
+
+    # -- kinematics --------------------------------------------------------------------
+    def full(self, t, y):
+        """All node positions and velocities (nodes x 2 each) at time t."""
+        x = np.empty((self.nodes, 2))
+        v = np.zeros((self.nodes, 2))
+        rho, rho_dot = self.ramp.rho(t), self.ramp.rho_dot(t)
+        x[0], x[1] = (0.0, 0.0), (rho[0], 0.0)
+        v[1, 0] = rho_dot[0]
+        k = 4 * self.n
+        x[2:] = y[:k].reshape(-1, 2)
+        v[2:] = y[k:].reshape(-1, 2)
+        return x, v, rho, rho_dot
+
+    def lengths(self, rho, rho_dot):
+        """Target length and its rate of every rigid element."""
+        length = np.array([r[2] if r[3] is None else rho[r[3]] for r in self.rigid])
+        rate = np.array([0.0 if r[3] is None else rho_dot[r[3]] for r in self.rigid])
+        return length, rate
+
+    def angle_jacobian(self, x):
+        """Local angles (2N) and d(angles)/d(all coordinates), (2N, 2 nodes)."""
+        angles = np.empty(2 * self.n)
+        jac = np.zeros((2 * self.n, 2 * self.nodes))
+        for i, (a1, a2, a3, a4) in enumerate(self.frames):
+            e, v3, v4 = x[a2] - x[a1], x[a3] - x[a1], x[a4] - x[a2]
+            phi_e, phi_3, phi_4 = (math.atan2(d[1], d[0]) for d in (e, v3, v4))
+            angles[2 * i] = phi_3 - phi_e
+            angles[2 * i + 1] = math.pi + phi_e - phi_4
+            for row, sign, (head, tail), d in ((2 * i, 1, (a3, a1), v3), (2 * i, -1, (a2, a1), e),
+                                               (2 * i + 1, 1, (a2, a1), e),
+                                               (2 * i + 1, -1, (a4, a2), v4)):
+                g = sign * np.array([-d[1], d[0]]) / (d @ d)
+                jac[row, 2 * head:2 * head + 2] += g
+                jac[row, 2 * tail:2 * tail + 2] -= g
+        return wrap(angles), jac
+
+    def constraint_rows(self, x, v):
+        """Phi_q over all coordinates (rigid, 2 nodes), and d, d' per element."""
+        rows = np.zeros((len(self.rigid), 2 * self.nodes))
+        d = np.array([x[a] - x[b] for a, b, _, _ in self.rigid])
+        dv = np.array([v[a] - v[b] for a, b, _, _ in self.rigid])
+        for j, (a, b, _, _) in enumerate(self.rigid):
+            rows[j, 2 * a:2 * a + 2] = 2.0 * d[j]
+            rows[j, 2 * b:2 * b + 2] = -2.0 * d[j]
+        return rows, d, dv
+
+    def forces(self, x, v, jac):
+        """Springs, loads, weights and pivot damping on all coordinates."""
+        f = self.loads.copy().reshape(-1, 2)
+        for a, b, k in self.springs:
+            pull = k * (x[a] - x[b])
+            f[a] -= pull
+            f[b] += pull
+        return f.ravel() - self.damping * jac.T @ (jac @ v.ravel())
+
+    # -- the ODE -------------------------------------------------------------------------
+    def _solve(self, t, y):
+        x, v, rho, rho_dot = self.full(t, y)
+        _, jac = self.angle_jacobian(x)
+        rows, d, dv = self.constraint_rows(x, v)
+        length, rate = self.lengths(rho, rho_dot)
+        phi = np.einsum('ij,ij->i', d, d) - length ** 2
+        phi_dot = 2.0 * np.einsum('ij,ij->i', d, dv) - 2.0 * length * rate
+        gamma = (-2.0 * np.einsum('ij,ij->i', dv, dv) + 2.0 * rate ** 2
+                 - 2.0 * BAUMGARTE * phi_dot - BAUMGARTE ** 2 * phi)
+        force = self.forces(x, v, jac)
+        k, m = 4 * self.n, len(self.rigid)
+        system = np.zeros((k + m, k + m))
+        system[:k, :k] = self.mass
+        system[:k, k:] = -rows[:, 4:].T
+        system[k:, :k] = rows[:, 4:]
+        sol = np.linalg.solve(system, np.concatenate([force[4:], gamma]))
+        return sol[:k], sol[k:], x, v, rows, force
+
+    def rhs(self, t, y):
+        acc = self._solve(t, y)[0]
+        return np.concatenate([y[4 * self.n:], acc])
+
+    def rates(self, t, y):
+        x, v, _, _ = self.full(t, y)
+        angles, jac = self.angle_jacobian(x)
+        return angles, jac @ v.ravel()
+
+    def actuator_forces(self, t, y):
+        """Module 0: the x reaction the actuator supplies at A2(0); above: 2 lambda l."""
+        acc, lam, x, v, rows, force = self._solve(t, y)
+        q_ddot = np.concatenate([np.zeros(4), acc])
+        reaction = self.mass_to_free[2] @ q_ddot - force[2] - rows[:, 2] @ lam
+        length, _ = self.lengths(self.ramp.rho(t), self.ramp.rho_dot(t))
+        return np.concatenate([[reaction], 2.0 * lam[self.chord_rows] * length[self.chord_rows]])
+
+    def onset_events(self):
+        def event(k):
+            return lambda t, y: self.rates(t, y)[1][k] ** 2 - ONSET_SPEED ** 2
+        return [event(k) for k in range(2 * self.n)]
+
+    # -- start and rest ------------------------------------------------------------------
+    def start_state(self, nodes):
+        """Node positions of an equilibrium, at rest in the local angles (as far as the
+        moving chords allow: all rates zero when only module 0 moves)."""
+        y = np.concatenate([nodes[2:].ravel(), np.zeros(4 * self.n)])
+        return self.with_angle_rates(0.0, y, np.zeros(2 * self.n))
+
+    def after_ramp(self, y):
+        """At the end of the ramp the actuator velocities step to zero; the local angle
+        rates carry on (the module model's convention: rho'' impulses neglected)."""
+        t = self.ramp.duration
+        return self.with_angle_rates(t, y, self.rates(np.nextafter(t, -np.inf), y)[1])
+
+    def with_angle_rates(self, t, y, target):
+        """``y`` with node velocities that satisfy the length constraints at time t and
+        give local angle rates as close to ``target`` as they allow (least squares)."""
+        y = np.array(y, dtype=float)
+        y[4 * self.n:] = 0.0
+        x, v, rho, rho_dot = self.full(t, y)
+        _, jac = self.angle_jacobian(x)
+        rows, _, _ = self.constraint_rows(x, v)
+        length, rate = self.lengths(rho, rho_dot)
+        b = 2.0 * length * rate - rows[:, :4] @ v.ravel()[:4]
+        particular = np.linalg.lstsq(rows[:, 4:], b, rcond=None)[0]
+        basis = null_space(rows[:, 4:])
+        miss = jac[:, :4] @ v.ravel()[:4] + jac[:, 4:] @ particular - target
+        z = np.linalg.lstsq(jac[:, 4:] @ basis, -miss, rcond=None)[0]
+        y[4 * self.n:] = particular + basis @ z
+        return y
+
+    def potential(self, x):
+        """U (J) in extended precision (rest is decided on differences of 1e-12 J)."""
+        x = np.asarray(x, dtype=np.longdouble)
+        u = -np.sum(self.loads.astype(np.longdouble) * x.ravel())
+        for a, b, k in self.springs:
+            d = x[a] - x[b]
+            u += 0.5 * k * (d @ d)
+        return u
+
+    def settled(self, y):
+        """Rest angles if the damped energy above the nearby minimum is below the least
+        energy of any state outside the tolerance box (linearised), else None."""
+        if self.damping == 0.0:
+            return None
+        t_end = self.ramp.duration
+        angles, rates = self.rates(t_end, y)
+        if np.max(np.abs(rates)) > 1e-3:
+            return None
+        end = Stack(tuple(m.with_(rho=r) for m, r in zip(self.modules, self.ramp.rho1)))
+        try:
+            eq = settle_stack(end, angles.reshape(self.n, 2))
+        except (RuntimeError, ValueError):
+            return None
+        x, v, _, _ = self.full(t_end, y)
+        kinetic = 0.5 * v.ravel()[4:] @ self.mass @ v.ravel()[4:]
+        excess = float(self.potential(x) - self.potential(eq.nodes)) + kinetic
+        stiffness = min(float(eq.eigenvalues[0]), float(np.linalg.eigvalsh(self.mass)[0]))
+        shortest = min(min(m.L1, m.L2) for m in self.modules)
+        floor = 0.5 * stiffness * (0.5 * SETTLE_TOLERANCE * shortest) ** 2
+        return eq.theta.ravel() if excess < 0.5 * floor else None
+
+
+def _rho_vector(values, n, name):
+    values = np.atleast_1d(np.asarray(values, dtype=float))
+    if values.shape == (1,):
+        values = np.full(n, values[0])
+    if values.shape != (n,):
+        raise InvalidParameterError(f'{name} must have {n} values (one per module), '
+                                    f'got {values.shape}')
+    return values
+
+
+def simulate_neck_snap(stack: Stack, rho_end, rate: float, damping: float, theta_guess,
+                       hold: float | None = None,
+                       settings: SolverSettings = SolverSettings()) -> NeckSnap:
+    """Drive every module's rho from ``stack`` to ``rho_end`` (N values, or one for all)
+    at ``rate`` (m/s, the largest change), then hold (``hold`` s, or until settled for
+    good, at most MAX_HOLD).  Starts in the stable equilibrium of ``theta_guess`` (N x 2)."""
+    transient.checked_hold(hold)
+    rho1 = _rho_vector(rho_end, len(stack), 'rho_end')
+    end = Stack(tuple(m.with_(rho=float(r)) for m, r in zip(stack.modules, rho1)))
+    ramp = RhoRamp(tuple(m.rho for m in stack.modules), tuple(rho1), float(rate))
+    system = _Neck(stack, ramp, damping)
+    start = settle_stack(stack, theta_guess)
+    solution, events, rest = transient.run(system, system.start_state(start.nodes), hold,
+                                           settings)
+    reader = _Reader(system, solution)
+    ts = transient.sample_times(solution)
+    theta, omega = reader.angles_and_rates(ts)
+    shape = (-1, len(stack), 2)
+    history = SnapHistory(t=ts, rho=ramp.rho(ts), theta=theta.reshape(shape),
+                          theta_dot=omega.reshape(shape), actuator_force=reader.forces(ts))
+    onset = min(events) if events else None
+    summary = {'onset_rho': None if onset is None else ramp.rho(onset).tolist(),
+               'onset_time': onset}
+    summary.update(transient.figures(ts, reader.angles, reader.rates, reader.forces, onset,
+                                     rest, ramp.duration))
+    summary['final'] = {'theta': theta[-1].reshape(shape[1:]).tolist(),
+                        'speed': float(np.max(np.abs(omega[-1])))}
+    track = track_stack(stack, end, start)
+    summary.update(_beside_quasi_static(track, rest if rest is not None else theta[-1]))
+    return NeckSnap(history=history, summary=summary, quasi_static=track, solution=solution)
+
+
+class _Reader:
+    """Local angles, their rates and the actuator forces of the dense solution at times t."""
+
+    def __init__(self, system, solution):
+        self.system, self.solution = system, solution
+
+    def _each(self, t, f):
+        t = np.atleast_1d(t)
+        return np.array([f(tk, yk) for tk, yk in zip(t, self.solution(t).T)])
+
+    def angles_and_rates(self, t):
+        both = self._each(t, lambda tk, yk: np.stack(self.system.rates(tk, yk)))
+        return both[:, 0], both[:, 1]
+
+    def angles(self, t):
+        return self.angles_and_rates(t)[0]
+
+    def rates(self, t):
+        return self.angles_and_rates(t)[1]
+
+    def forces(self, t):
+        return self._each(t, self.system.actuator_forces)
+
+
+def _beside_quasi_static(track, landed):
+    """The stack tracker's prediction, and whether inertia lands the neck elsewhere."""
+    predicted = track.final.theta.ravel()
+    return {'quasi_static': {
+                'jumps': [{'kind': j.kind, 'rho': [m.rho for m in j.stack.modules],
+                           'theta': np.asarray(j.from_theta).tolist(),
+                           'landing': np.asarray(j.to_theta).tolist()} for j in track.jumps],
+                'final': {'theta': track.final.theta.tolist()}, 'status': track.status},
+            'lands_elsewhere': bool(np.max(np.abs(wrap(landed - predicted))) > SAME_LANDING)}

@@ -1,0 +1,237 @@
+"""A transient driven by an actuator ramp: the profile, the integration and its figures.
+
+Shared by the dynamics of one module (:mod:`.dynamics`) and of the neck
+(:mod:`.neck_dynamics`): rho(t) runs at constant rate and is then held; scipy's
+``solve_ivp`` integrates the ramp and then the hold in chunks until the motion
+has settled for good; the figures (onset, peak speed and force, overshoot,
+settling time) are read from the dense output, peaks refined by a bounded scalar
+search and the last exit from the rest tolerance by a root bracket.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import OdeSolution, solve_ivp
+from scipy.optimize import brentq, minimize_scalar
+
+from .module import InvalidParameterError
+
+#: |theta'| (rad/s) of any rod that marks the onset of a snap.
+ONSET_SPEED = 1.0
+#: Settled: |theta - final| below this (rad) and |theta'| below this (rad/s), for good.
+SETTLE_TOLERANCE = 1e-6
+#: Longest hold (s) when the hold is "until settled".
+MAX_HOLD = 60.0
+#: Rest states closer than this (rad, per angle) are the same equilibrium.
+SAME_LANDING = 1e-4
+
+
+@dataclass(frozen=True)
+class RhoRamp:
+    """rho(t): from ``rho0`` to ``rho1`` (floats, or one per module) at ``rate`` (m/s,
+    > 0; the largest change sets the time, all actuators arrive together), then held."""
+
+    rho0: object
+    rho1: object
+    rate: float
+    duration: float = field(init=False)     # time (s) the ramp takes
+
+    def __post_init__(self):
+        for name in ('rho0', 'rho1', 'rate'):
+            value = getattr(self, name)
+            try:
+                ok = bool(np.all(np.isfinite(np.asarray(value, dtype=float))))
+            except (TypeError, ValueError):
+                ok = False
+            if not ok or isinstance(value, (str, bytes)):
+                raise InvalidParameterError(f'{name} must be finite numbers, got {value!r}')
+        if np.shape(self.rho0) != np.shape(self.rho1):
+            raise InvalidParameterError(
+                f'rho0 and rho1 differ in size: {np.shape(self.rho0)} vs {np.shape(self.rho1)}')
+        if not self.rate > 0.0:
+            raise InvalidParameterError(f'rate must be positive, got {self.rate!r}')
+        # the right-hand side asks for it at every evaluation: computed once
+        object.__setattr__(self, 'duration',
+                           float(np.max(np.abs(np.subtract(self.rho1, self.rho0)))) / self.rate)
+
+    def fraction(self, t):
+        """Path parameter s in [0, 1] at time t (1 during the hold)."""
+        duration = self.duration
+        return 1.0 if duration == 0.0 or t >= duration else max(t, 0.0) / duration
+
+    def rho(self, t):
+        """rho at time(s) t: shape t.shape + rho0.shape."""
+        t = np.asarray(t, dtype=float)
+        duration = self.duration
+        s = np.ones_like(t) if duration == 0.0 else np.clip(t / duration, 0.0, 1.0)
+        s = s.reshape(s.shape + (1,) * np.ndim(self.rho0))
+        return np.asarray(self.rho0, dtype=float) + s * np.subtract(self.rho1, self.rho0)
+
+    def rho_dot(self, t):
+        """d rho / dt at time t (zero during the hold)."""
+        if t >= self.duration:
+            return np.zeros_like(np.asarray(self.rho0, dtype=float))
+        return np.subtract(self.rho1, self.rho0) / self.duration
+
+
+@dataclass(frozen=True)
+class SnapHistory:
+    """Time history of a transient: ``t`` (s, n samples), ``rho`` (m), ``theta`` and
+    ``theta_dot`` (rad, rad/s), ``actuator_force`` (N, inertia included).  One module:
+    shapes (n,), (n, 2), (n, 2), (n,); a neck of N modules: (n, N), (n, N, 2), (n, N, 2),
+    (n, N)."""
+
+    t: np.ndarray
+    rho: np.ndarray
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    actuator_force: np.ndarray
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """solve_ivp settings: tolerances that keep the reported figures to 0.1 %."""
+
+    method: str = 'DOP853'
+    rtol: float = 1e-10
+    atol: float = 1e-12
+    chunk: float = 1.0          # s of hold between checks for "settled for good"
+
+
+def checked_hold(hold):
+    """``hold`` (s) as given, or InvalidParameterError."""
+    if hold is not None and (not isinstance(hold, (int, float)) or not math.isfinite(hold)
+                             or hold < 0.0):
+        raise InvalidParameterError(f'hold must be finite and >= 0, got {hold!r}')
+    return hold
+
+
+def checked_damping(damping):
+    if not isinstance(damping, (int, float)) or not math.isfinite(damping) or damping < 0.0:
+        raise InvalidParameterError(f'damping must be finite and >= 0, got {damping!r}')
+    return float(damping)
+
+
+def _integrate(system, y0, t0, t1, settings):
+    sol = solve_ivp(system.rhs, (t0, t1), y0, method=settings.method, rtol=settings.rtol,
+                    atol=settings.atol, dense_output=True, events=system.onset_events())
+    if sol.status < 0:
+        raise RuntimeError(f'the ODE solver failed: {sol.message}')
+    return sol
+
+
+def run(system, y0, hold, settings):
+    """Integrate the ramp, then the hold (``hold`` s, or until ``system.settled(y)``
+    returns the rest angles, at most MAX_HOLD); returns (OdeSolution, onset events,
+    rest angles or None).  ``system.after_ramp(y)`` maps the state across the ramp's
+    end, where the actuator velocities step to zero."""
+    ramp_end = system.ramp.duration
+    pieces = []
+    if ramp_end > 0.0:
+        pieces.append(_integrate(system, y0, 0.0, ramp_end, settings))
+        y0 = system.after_ramp(pieces[-1].y[:, -1])
+    limit = MAX_HOLD if hold is None else hold
+    t, settled = ramp_end, None
+    while t < ramp_end + limit:
+        t_next = min(t + settings.chunk, ramp_end + limit)
+        pieces.append(_integrate(system, y0, t, t_next, settings))
+        t, y0 = t_next, pieces[-1].y[:, -1]
+        settled = system.settled(y0)
+        if settled is not None and hold is None:
+            break
+    ts = np.concatenate([pieces[0].t] + [p.t[1:] for p in pieces[1:]])
+    interpolants = [f for p in pieces for f in p.sol.interpolants]
+    events = [float(e) for p in pieces for ev in p.t_events for e in ev]
+    return OdeSolution(ts, interpolants), events, settled
+
+
+def sample_times(solution, per_step=4):
+    """The solver's step points, each step split into ``per_step`` parts."""
+    ts = solution.ts
+    fractions = np.arange(per_step) / per_step
+    inner = (ts[:-1, None] + np.diff(ts)[:, None] * fractions).ravel()
+    return np.append(inner, ts[-1])
+
+
+def _refined_peak(f, ts, values):
+    """Largest f on the samples, refined on the dense output around the best sample."""
+    i = int(np.argmax(values))
+    lo, hi = ts[max(i - 1, 0)], ts[min(i + 1, len(ts) - 1)]
+    best = float(values[i])
+    if hi > lo:
+        res = minimize_scalar(lambda t: -f(t), bounds=(lo, hi), method='bounded',
+                              options={'xatol': 1e-12 * max(1.0, hi)})
+        best = max(best, float(f(res.x)))
+    return best
+
+
+def _last_exit(box, ts, values):
+    """Time after which ``box`` (<= 0 inside) stays <= 0: the last crossing, refined."""
+    outside = np.flatnonzero(values > 0.0)
+    if outside.size == 0:
+        return float(ts[0])
+    i = int(outside[-1])
+    if i == len(ts) - 1:
+        return None
+    return float(brentq(box, ts[i], ts[i + 1], xtol=1e-12))
+
+
+def figures(ts, angles, rates, forces, onset, rest, ramp_end):
+    """Peak speed, peak actuator force, overshoot and settling time of a transient.
+
+    ``angles(t)``, ``rates(t)``, ``forces(t)`` evaluate the dense solution at an
+    array of times (shape (n, k) for angles and rates, (n, m) for forces);
+    ``onset`` is the onset time (or None), ``rest`` the rest angles (or None if
+    not settled).  Angles here are continuous (not wrapped).
+    """
+    theta, omega, force = angles(ts), rates(ts), forces(ts)
+
+    def at(f, t):
+        return f(np.array([t]))[0]
+
+    peak_speed = _refined_peak(lambda t: float(np.max(np.abs(at(rates, t)))), ts,
+                               np.max(np.abs(omega), axis=1))
+    sign = 1.0 if np.max(force) >= -np.min(force) else -1.0
+    peak_force = sign * _refined_peak(lambda t: float(np.max(sign * at(forces, t))), ts,
+                                      np.max(sign * force, axis=1))
+    final = rest if rest is not None else theta[-1]
+    from_t = onset if onset is not None else 0.0
+    overshoot = _overshoot(ts, theta, final, from_t, lambda t: at(angles, t))
+    settle_time = None
+    if rest is not None:
+        def box(t):
+            return max(float(np.max(np.abs(at(angles, t) - rest))),
+                       float(np.max(np.abs(at(rates, t))))) / SETTLE_TOLERANCE - 1.0
+        outside = np.maximum(np.max(np.abs(theta - rest), axis=1),
+                             np.max(np.abs(omega), axis=1)) / SETTLE_TOLERANCE - 1.0
+        exit_time = _last_exit(box, ts, outside)
+        start = onset if onset is not None else ramp_end
+        settle_time = None if exit_time is None else max(exit_time - start, 0.0)
+    return {'peak_speed': peak_speed, 'peak_actuator_force': peak_force,
+            'overshoot': overshoot, 'settle_time': settle_time, 'settled': rest is not None}
+
+
+def _overshoot(ts, theta, final, from_t, angles_at):
+    """Largest excursion (rad) of any rod past its final angle, away from where it came.
+
+    Each rod approaches its final angle from the side it was on at ``from_t``
+    (the onset, or the start); the overshoot is how far it swings beyond.
+    """
+    keep = ts >= from_t
+    if not np.any(keep):
+        return 0.0
+    direction = np.sign(final - angles_at(from_t))
+    beyond = (theta[keep] - final) * direction
+    worst = np.max(beyond, axis=0)
+    rod = int(np.argmax(worst))
+    if worst[rod] <= 0.0:
+        return 0.0
+    return max(_refined_peak(lambda t: float((angles_at(t)[rod] - final[rod]) * direction[rod]),
+                             ts[keep], beyond[:, rod]), 0.0)
+
+
+def wrap(angle):
+    """Angles in [-pi, pi)."""
+    return (np.asarray(angle, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi

@@ -75,4 +75,5 @@ def arguments(config):
 
 
 def generate_launch_description():
-    return LaunchDescription(arguments('default.yaml') + [OpaqueFunction(function=tensegrity_node)])
+    return LaunchDescription(arguments('default.yaml')
+                             + [OpaqueFunction(function=tensegrity_node)])

@@ -1,4 +1,4 @@
-"""Start the three-module bird neck: ``ros2 launch tensegrity_ros neck.launch.py [arg:=value ...]``.
+"""Start the three-module bird neck: ``ros2 launch tensegrity_ros neck.launch.py [arg:=v ...]``.
 
 ``module.launch.py`` on ``config/neck.yaml`` (modules m0, m1, m2, bottom to top): the same
 arguments (namespace, node_name, config, params, use_sim_time, executor, log_level), e.g.

@@ -58,9 +58,12 @@ def test_every_launch_file_has_a_launch_description():
         assert 'generate_launch_description' in names, path
 
 
-# Runs a launch file the way ``ros2 launch <file> name:=value ...`` does.
+# Runs a launch file the way ``ros2 launch <file> name:=value ...`` does.  launch sees SIGINT
+# through Python's handler: restore it in case this process was started with SIGINT ignored.
 LAUNCHER = '''
+import signal
 import sys
+signal.signal(signal.SIGINT, signal.default_int_handler)
 from launch import LaunchService
 from launch.actions import IncludeLaunchDescription
 from launch.launch_description_sources import PythonLaunchDescriptionSource
@@ -90,6 +93,7 @@ def test_installed_neck_launch_file_starts_the_node_with_every_argument():
         [sys.executable, '-c', LAUNCHER, str(launch_file), 'namespace:=launched',
          'node_name:=bird_neck', 'params:={m0.rho_initial: 0.1, m2.force_a3: [0.0, -1.0]}',
          'use_sim_time:=true', 'executor:=single', 'log_level:=warn'],
+        env=dict(os.environ, PYTHONUNBUFFERED='1'), start_new_session=True,
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     context = rclpy.Context()
     rclpy.init(context=context)
@@ -122,8 +126,8 @@ def test_installed_neck_launch_file_starts_the_node_with_every_argument():
             proc.send_signal(signal.SIGINT)
         try:
             out, _ = proc.communicate(timeout=TIMEOUT)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        except subprocess.TimeoutExpired:   # end the launch and the node it started
+            os.killpg(proc.pid, signal.SIGKILL)
             out, _ = proc.communicate()
     assert proc.returncode == 0, out
     assert 'process has finished cleanly' in out, out

@@ -25,9 +25,13 @@ $(STAMP): requirements.txt setup.py
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	touch $(STAMP)
 
+# Ctrl-C: on a terminal the recipe shell runs the node as a job of its own (set -m), so the
+# terminal's SIGINT reaches the node only; the node shuts down and exits 0, and make returns
+# the node's status rather than dying of the signal itself (130). `; exit $$?` keeps bash
+# from exec'ing the node in place of the job-control shell.
 run: $(STAMP)
 	@echo "tensegrity_node on $(CONFIG), ROS_DOMAIN_ID=$(ROS_DOMAIN_ID), discovery LOCALHOST"
-	$(PY) -m tensegrity_ros.node --ros-args --params-file $(CONFIG)
+	if [ -t 0 ]; then set -m; fi; $(PY) -m tensegrity_ros.node --ros-args --params-file $(CONFIG); exit $$?
 
 test: $(STAMP)
 	ROS_PYTHON_CHECK_FIELDS=1 $(PY) -m pytest $(PYTEST_ARGS)

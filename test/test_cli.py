@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from installed import installed_script
 from tensegrity_ros.cli import main
 from tensegrity_ros.core import ModuleParams, equilibria, equilibria_batch
 
@@ -212,10 +213,8 @@ def test_help_returns_zero(capsys):
     assert code == 0 and 'COUNT' in out
 
 
-def test_console_script_entry_point(tmp_path):
-    script = Path(sys.executable).with_name('tensegrity')
-    if not script.exists():
-        pytest.skip(f'console script not installed at {script}')
+def test_console_script_entry_point():
+    script = installed_script('tensegrity')
     done = subprocess.run([str(script), 'solve', '--rho', '0.75', '--F', '-10', '--json'],
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr

@@ -42,6 +42,7 @@ from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterVal
                               ParameterException)
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -51,6 +52,8 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from tensegrity_ros import ros_conversions as conv
+from tensegrity_ros.log_text import clipped, shown
+from tensegrity_ros.params_file import ConfigError, check_parameter_file
 from tensegrity_ros.core import (InvalidParameterError, ModuleParams, TrackingError,
                                  ModuleJump, equilibria, node_positions, settle, track_module)
 from tensegrity_ros.core.analysis import operation_range
@@ -86,6 +89,9 @@ MARKERS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 DEFAULT_NODE_NAME = 'tensegrity'
+#: Slowest markers rate other than 0 (off): a slower one is a typo (5e-324 would give a
+#: timer period that cannot be represented).
+MIN_MARKERS_RATE = 0.01
 #: Rejected input and failures are logged at most once per this many seconds per reason.
 WARN_THROTTLE_SEC = 2.0
 #: A published state must have lambda_min > this * |lambda_max| (a verified minimum).
@@ -183,7 +189,8 @@ NODE_PARAMETERS = (
     ('publish_rate', 50.0, _D,
      'Rate (Hz) of the joint_states timer; also the segment rate of speed-limited motion and '
      'the highest rate of equilibrium updates.', '1..1000 Hz', (1.0, 1000.0), False),
-    ('markers_rate', 10.0, _D, 'Rate (Hz) of the markers topic; 0 = off.', '0..100 Hz',
+    ('markers_rate', 10.0, _D, 'Rate (Hz) of the markers topic; 0 = off.',
+     f'0 (off) or {MIN_MARKERS_RATE:g}..100 Hz',
      (0.0, 100.0), False),
     ('diagnostics_rate', 1.0, _D, 'Rate (Hz) of /diagnostics.', '0.1..100 Hz',
      (0.1, 100.0), False),
@@ -417,7 +424,7 @@ class TensegrityNode(Node):
         for m in names:
             if not _MODULE_NAME.match(m):
                 raise ConfigurationError(
-                    f'module name {m!r}: use a letter followed by letters, digits or _')
+                    f'module name {shown(m)}: use a letter followed by letters, digits or _')
         return names
 
     def _coerce_overrides(self, types):
@@ -463,7 +470,7 @@ class TensegrityNode(Node):
     def _warn_unknown_overrides(self):
         known = set(self._declared) | {'modules', 'use_sim_time'}
         for name in sorted(set(self._parameter_overrides) - known):
-            self.get_logger().warning(f'ignoring unknown parameter {name!r}')
+            self.get_logger().warning(f'ignoring unknown parameter {shown(name)}')
 
     def _configure_slot(self, slot):
         values = self._current_values()
@@ -555,7 +562,7 @@ class TensegrityNode(Node):
         for key in ('force_a3', 'force_a4', 'initial_theta'):
             v = get(key)
             if not _finite_pair(v):
-                return f'{m}.{key} must be two finite numbers, got {v!r}'
+                return f'{m}.{key} must be two finite numbers, got {shown(v)}'
         lo, hi, initial = get('rho_min'), get('rho_max'), get('rho_initial')
         if not (math.isfinite(lo) and lo > 0.0):
             return f'{m}.rho_min must be finite and > 0, got {lo!r}'
@@ -579,6 +586,10 @@ class TensegrityNode(Node):
     def _check_node_values(values):
         if not values['frame_id']:
             return 'frame_id must not be empty'
+        rate = values['markers_rate']
+        if rate != 0.0 and not MIN_MARKERS_RATE <= rate <= 100.0:
+            return (f'markers_rate must be 0 (off) or {MIN_MARKERS_RATE:g}..100 Hz (a period '
+                    f'of at most {1 / MIN_MARKERS_RATE:g} s), got {rate!r}')
         return ''
 
     def _pre_set_parameters(self, parameters):
@@ -587,7 +598,7 @@ class TensegrityNode(Node):
             out = []
             for p in parameters:
                 if not self.has_parameter(p.name):
-                    self._reject('parameter_undeclared', f'no parameter named {p.name!r}')
+                    self._reject('parameter_undeclared', f'no parameter named {shown(p.name)}')
                     out.append(p)
                     continue
                 d = self.describe_parameter(p.name)
@@ -737,9 +748,9 @@ class TensegrityNode(Node):
     def _count_exception(self, what, exc):
         self._counters['callback_exceptions'] += 1
         self._level_events.add('exception')
-        self._throttled('exception').error(
+        self._throttled('exception').error(clipped(
             f'{what}: unexpected {type(exc).__name__}: {exc} (state unchanged; '
-            f'{self._counters["callback_exceptions"]} so far)',
+            f'{self._counters["callback_exceptions"]} so far)'),
             throttle_duration_sec=WARN_THROTTLE_SEC)
         self.get_logger().debug(traceback.format_exc())
 
@@ -755,7 +766,7 @@ class TensegrityNode(Node):
         self._counters[key] += 1
         self._level_events.add('rejected')
         self._throttled(reason).warning(
-            f'{text}: dropped ({key} = {self._counters[key]})',
+            clipped(f'{text}: dropped ({key} = {self._counters[key]})'),
             throttle_duration_sec=WARN_THROTTLE_SEC)
 
     def _make_rho_callback(self, slot):
@@ -768,6 +779,7 @@ class TensegrityNode(Node):
             if not slot.rho_min <= value <= slot.rho_max:
                 return self._reject('out_of_range', f'{topic}: {value!r} outside [rho_min, '
                                                     f'rho_max] = [{slot.rho_min}, {slot.rho_max}]')
+            self._counters['commands_processed'] += 1
             self._publish_joint_states(self._command_rho(slot, value, 'rho_cmd'))
         return on_rho_cmd
 
@@ -805,10 +817,10 @@ class TensegrityNode(Node):
         for name, value in zip(names, positions):
             slot = self._rho_joints.get(name)
             if slot is None:
-                return self._reject('unknown_joint', f'joint_commands: unknown joint {name!r} '
+                return self._reject('unknown_joint', f'joint_commands: unknown joint {shown(name)} '
                                                      f'(commandable: {sorted(self._rho_joints)})')
             if slot.name in targets:
-                return self._reject('duplicate_joint', f'joint_commands: {name!r} given twice')
+                return self._reject('duplicate_joint', f'joint_commands: {shown(name)} given twice')
             if not math.isfinite(value):
                 return self._reject('non_finite', f'joint_commands: {name} = {value!r} '
                                                   f'is not finite')
@@ -819,7 +831,7 @@ class TensegrityNode(Node):
         if self._stack is not None and not any(s.max_rho_rate > 0.0 for s, _ in
                                                targets.values()):
             # a stack: every target on one straight path; jumps name the first joint's module
-            self._counters['commands_processed'] += len(targets)
+            self._counters['commands_processed'] += 1
             ends = {}
             for slot, value in targets.values():
                 slot.target = None
@@ -831,6 +843,7 @@ class TensegrityNode(Node):
             return self._publish_joint_states()
         # one message, one start time: every speed-limited target starts moving at the time
         # the published state is stamped with (not one clock reading per joint)
+        self._counters['commands_processed'] += 1
         now = self._now_ns()
         for slot, value in targets.values():
             self._command_rho(slot, value, 'joint_commands', now)
@@ -922,7 +935,6 @@ class TensegrityNode(Node):
     def _command_rho(self, slot, value, cause, now=None):
         """Apply an actuator target received at ``now`` (ns, default: now); returns the time
         (ns) the new state holds for."""
-        self._counters['commands_processed'] += 1
         self._warn_if_jump_ahead(slot, value, cause)
         if slot.max_rho_rate > 0.0:
             now = self._now_ns() if now is None else now
@@ -1049,7 +1061,8 @@ class TensegrityNode(Node):
             modules=self.modules, index=trigger.index, jump=jump, cause=cause,
             count=self._stack_jumps)
         self._jumps_pub.publish(msg)
-        self.get_logger().warning(f'{trigger.name}: stack jump ({cause}): {msg.message}')
+        self._throttled('jump').warning(f'{trigger.name}: stack jump ({cause}): {msg.message}',
+                                        throttle_duration_sec=WARN_THROTTLE_SEC)
 
     def _tracking_failed(self, slot, text):
         self._counters['tracking_failures'] += 1
@@ -1068,7 +1081,8 @@ class TensegrityNode(Node):
                                hardware_id=self._hardware_id, module=slot.name, jump=jump,
                                cause=cause, index=slot.jumps_total)
         self._jumps_pub.publish(msg)
-        self.get_logger().warning(f'{slot.name}: jump ({cause}): {msg.message}')
+        self._throttled('jump').warning(f'{slot.name}: jump ({cause}): {msg.message}',
+                                        throttle_duration_sec=WARN_THROTTLE_SEC)
         self._publish_status(slot)
 
     # -- publishing -----------------------------------------------------------------------
@@ -1234,10 +1248,37 @@ def _interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
+def _parameter_files(argv):
+    """The ``--params-file`` paths among the ROS arguments of ``argv``."""
+    paths, in_ros_args = [], False
+    for i, arg in enumerate(argv):
+        if arg == '--ros-args':
+            in_ros_args = True
+        elif arg == '--':
+            in_ros_args = False
+        elif in_ros_args and arg == '--params-file' and i + 1 < len(argv):
+            paths.append(argv[i + 1])
+    return paths
+
+
+def _fatal(text):
+    """One FATAL log line (the exit status 2 path of an unusable configuration)."""
+    rclpy.logging.get_logger(DEFAULT_NODE_NAME).fatal(clipped(f'invalid configuration: {text}'))
+
+
 def main(args=None):
     """Entry point of ``tensegrity_node``: 0 on normal exit or Ctrl-C, 2 on a bad configuration."""
     argv = sys.argv if args is None else args
-    options = _parse_cli(argv)
+    try:
+        for path in _parameter_files(argv):
+            check_parameter_file(path)
+        options = _parse_cli(argv)
+    except ConfigError as exc:
+        _fatal(exc)
+        return 2
+    except _rclpy.RCLInvalidROSArgsError as exc:    # what rcl refuses beyond the YAML check
+        _fatal(clipped(str(exc).split(', at /')[0]))
+        return 2
     node = None
     executor = None
     try:
@@ -1254,7 +1295,7 @@ def main(args=None):
         while rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
     except ConfigurationError as exc:
-        rclpy.logging.get_logger(DEFAULT_NODE_NAME).fatal(f'invalid configuration: {exc}')
+        _fatal(exc)
         return 2
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 from .core import ModuleParams, InvalidParameterError
 
-#: Per-module parameters of the node and their defaults (node.MODULE_PARAMETERS).
+#: Per-module parameters of the node and their defaults (node_parameters.MODULE_PARAMETERS).
 MODULE_DEFAULTS = {
     'L1': 1.0, 'L2': 1.0, 'k': 100.0, 'ka': 0.0, 'kb': 0.0, 'kc': 0.0, 'm1': 0.0, 'm2': 0.0,
     'force_a3': (0.0, 0.0), 'force_a4': (0.0, 0.0), 'rho_initial': 0.75,

@@ -86,48 +86,37 @@ class JointStateBuffer:
         return self.msg
 
 
-def normalized_margin(params, eq) -> float:
-    """Stability margin (smallest Hessian eigenvalue) over the module's stiffness scale.
-
-    The scale ``min(ka, kb, kc) * L1 * L2`` (J/rad^2) is the size of the Hessian's
-    spring terms: 1 is a stiff, well-conditioned module, 0 is a fold or branch point.
-    """
-    return float(eq.stability_margin) / (min(params.ka, params.kb, params.kc)
-                                         * params.L1 * params.L2)
+#: DiagnosticStatus level of a simulator status level.
+LEVELS = {'ok': OK, 'warn': WARN, 'error': ERROR}
 
 
-def equilibrium_status(*, name, hardware_id, module, params, eq, level, message,
-                       num_equilibria, num_stable, last_jump, jumps_total,
-                       tracking_status, warn_margin, operation_range=None, normalized=None):
-    """``equilibrium`` DiagnosticStatus of one module (values: DESIGN section 5).
-
-    ``normalized``: the normalized stability margin if it is not the one-module
-    :func:`normalized_margin` (a stack: see :class:`StackModuleState`).
-    """
-    if normalized is None:
-        normalized = normalized_margin(params, eq)
+def equilibrium_status(*, name, hardware_id, module, status):
+    """``equilibrium`` DiagnosticStatus of one module from its simulator
+    :class:`~tensegrity_ros.core.simulator.ModuleStatus` (values: msg_docs/equilibrium.md)."""
+    params, eq, last_jump = status.params, status.eq, status.last_jump
+    found = status.operation_range
     if last_jump is None:
         last_kind, last_rho, last_s = NONE, NONE, NONE
     else:
         last_kind, last_rho = last_jump.kind, float(last_jump.params.rho)
         last_s = float(last_jump.s)
-    status = DiagnosticStatus(level=level, name=name, message=message,
-                              hardware_id=hardware_id)
-    status.values = key_values((
+    msg = DiagnosticStatus(level=LEVELS[status.level], name=name, message=status.message,
+                           hardware_id=hardware_id)
+    msg.values = key_values((
         ('module', module),
         ('stable', bool(eq.stable)),
         ('rho', params.rho),
         ('theta1', eq.theta1),
         ('theta2', eq.theta2),
         ('stability_margin', eq.stability_margin),
-        ('stability_margin_normalized', normalized),
-        ('warn_margin', warn_margin),
+        ('stability_margin_normalized', status.normalized),
+        ('warn_margin', status.warn_margin),
         ('eigenvalues', fmt_vector(eq.eigenvalues)),
         ('energy', eq.energy),
         ('residual', float(eq.residual)),
         ('actuator_force', eq.actuator_force),
-        ('num_equilibria', num_equilibria),
-        ('num_stable', num_stable),
+        ('num_equilibria', status.num_equilibria),
+        ('num_stable', status.num_stable),
         ('L1', params.L1),
         ('L2', params.L2),
         ('ka', params.ka),
@@ -139,17 +128,17 @@ def equilibrium_status(*, name, hardware_id, module, params, eq, level, message,
         ('f3y', params.f3y),
         ('f4x', params.f4x),
         ('f4y', params.f4y),
-        ('rho_stable_min', NONE if operation_range is None else operation_range.lower.rho),
-        ('rho_stable_max', NONE if operation_range is None else operation_range.upper.rho),
-        ('rho_stable_min_end', NONE if operation_range is None else operation_range.lower.kind),
-        ('rho_stable_max_end', NONE if operation_range is None else operation_range.upper.kind),
+        ('rho_stable_min', NONE if found is None else found.lower.rho),
+        ('rho_stable_max', NONE if found is None else found.upper.rho),
+        ('rho_stable_min_end', NONE if found is None else found.lower.kind),
+        ('rho_stable_max_end', NONE if found is None else found.upper.kind),
         ('last_jump_kind', last_kind),
         ('last_jump_rho', last_rho),
         ('last_jump_s', last_s),
-        ('jumps_total', jumps_total),
-        ('tracking', tracking_status),
+        ('jumps_total', status.jumps_total),
+        ('tracking', status.tracking),
     ))
-    return status
+    return msg
 
 
 def _jump_message(*, name, hardware_id, jump, params, module, from_theta, to_theta, cause,
@@ -185,79 +174,32 @@ def _jump_message(*, name, hardware_id, jump, params, module, from_theta, to_the
     return status, pairs
 
 
-def jump_status(*, name, hardware_id, module, jump, cause, index):
-    """One ``jumps`` message: a fold or branch point crossed, and where the module landed."""
-    status, pairs = _jump_message(name=name, hardware_id=hardware_id, jump=jump,
-                                  params=jump.params, module=module,
-                                  from_theta=jump.from_theta, to_theta=jump.to_theta,
-                                  cause=cause, index=index, where=' at', label='')
-    status.values = key_values(pairs)
-    return status
+def jump_status(*, name, hardware_id, modules, jump):
+    """One ``jumps`` message (msg_docs/jumps.md) from a simulator
+    :class:`~tensegrity_ros.core.events.Jump`.
 
-
-def stack_jump_status(*, name, hardware_id, modules, index, jump, cause, count):
-    """One ``jumps`` message of a stack (N >= 2): a fold or branch point of the whole stack.
-
-    ``modules``: every module's name, bottom to top; ``index``: the module whose command
-    triggered the path.  ``rho``, ``from_theta1/2``, ``to_theta1/2`` and the forces are
-    that module's; ``from_<m>_theta1`` ... ``to_<m>_theta2`` give every module's angles
-    before (critical configuration) and after (landing).
+    ``modules``: every module's name, bottom to top.  ``rho``, ``from_theta1/2``,
+    ``to_theta1/2`` and the forces are those of the module whose command caused the jump;
+    a neck (N >= 2) adds ``<m>_rho`` and ``from_<m>_theta1`` ... ``to_<m>_theta2`` of
+    every module, before (critical configuration) and after (landing).
     """
+    index = jump.module
     module = modules[index]
-    status, pairs = _jump_message(name=name, hardware_id=hardware_id, jump=jump,
-                                  params=jump.stack.modules[index], module=module,
-                                  from_theta=jump.from_theta[index],
-                                  to_theta=jump.to_theta[index], cause=cause, index=count,
-                                  where=f' of the stack at {module}', label=f'{module} ')
-    for i, m in enumerate(modules):
-        pairs.append((f'{m}_rho', float(jump.stack.modules[i].rho)))
-    for side, theta in (('from', jump.from_theta), ('to', jump.to_theta)):
+    neck = len(modules) > 1
+    status, pairs = _jump_message(
+        name=name, hardware_id=hardware_id, jump=jump, params=jump.modules[index],
+        module=module, from_theta=jump.from_theta[index], to_theta=jump.to_theta[index],
+        cause=jump.cause, index=jump.count,
+        where=f' of the stack at {module}' if neck else ' at', label=f'{module} ' if neck else '')
+    if neck:
         for i, m in enumerate(modules):
-            pairs.append((f'{side}_{m}_theta1', float(theta[i][0])))
-            pairs.append((f'{side}_{m}_theta2', float(theta[i][1])))
+            pairs.append((f'{m}_rho', float(jump.modules[i].rho)))
+        for side, theta in (('from', jump.from_theta), ('to', jump.to_theta)):
+            for i, m in enumerate(modules):
+                pairs.append((f'{side}_{m}_theta1', float(theta[i][0])))
+                pairs.append((f'{side}_{m}_theta2', float(theta[i][1])))
     status.values = key_values(pairs)
     return status
-
-
-class StackModuleState:
-    """One module's view of a verified stack equilibrium, with the attributes the node
-    reads from a one-module ``Equilibrium`` (theta1, theta2, actuator_force, stable ...).
-
-    Stability is the whole stack's: ``stability_margin`` is the smallest reduced-Hessian
-    eigenvalue (N/m), ``eigenvalues`` all of them; ``normalized`` is the margin over
-    ``scale`` (the smallest spring stiffness of the stack, N/m).
-    """
-
-    __slots__ = ('stack', 'index', 'theta', 'theta1', 'theta2', 'actuator_force', 'stable',
-                 'stability_margin', 'eigenvalues', 'energy', 'residual', 'normalized')
-
-    def __init__(self, stack_eq, index, scale):
-        self.stack = stack_eq
-        self.index = index
-        self.theta = stack_eq.theta[index]
-        self.theta1 = float(self.theta[0])
-        self.theta2 = float(self.theta[1])
-        self.actuator_force = float(stack_eq.actuator_forces[index])
-        self.stable = stack_eq.stable
-        self.stability_margin = stack_eq.stability_margin
-        self.eigenvalues = stack_eq.eigenvalues
-        self.energy = float(stack_eq.energy)
-        self.residual = float(stack_eq.residual)
-        self.normalized = float(self.stability_margin) / scale
-
-
-def stack_module_nodes(nodes, index):
-    """A1..A4 of module ``index`` from a stack's node table (A1(0), A2(0), A3(i), A4(i))."""
-    a3, a4 = 2 + 2 * index, 3 + 2 * index
-    a1, a2 = (0, 1) if index == 0 else (a4 - 2, a3 - 2)
-    return nodes[[a1, a2, a3, a4]]
-
-
-def head_of(positions):
-    """Midpoint (x, y) and direction angle (rad) of the top chord A4 -> A3 of one module."""
-    a3, a4 = positions[2], positions[3]
-    return ((float(a3[0] + a4[0]) * 0.5, float(a3[1] + a4[1]) * 0.5),
-            math.atan2(float(a3[1] - a4[1]), float(a3[0] - a4[0])))
 
 
 class HeadPose:

@@ -491,7 +491,8 @@ def test_bad_forces_are_dropped_and_counted(harness):
 
 
 def test_unexpected_exception_in_a_callback_is_counted_not_raised(harness, monkeypatch):
-    import tensegrity_ros.node as node_module
+    # the tracker is injected where the node's simulator calls it
+    import tensegrity_ros.core.mechanisms as node_module
     h = harness().ready()
 
     def broken(*args, **kwargs):
@@ -513,7 +514,8 @@ def test_tracking_failure_keeps_the_last_verified_state(harness, monkeypatch):
     """If the tracker stops early, the node holds where it stopped (verified) and warns."""
     import dataclasses
 
-    import tensegrity_ros.node as node_module
+    # the tracker is injected where the node's simulator calls it
+    import tensegrity_ros.core.mechanisms as node_module
     real = node_module.track_module
 
     def stops_halfway(start, end, theta):

@@ -113,7 +113,7 @@ def test_speed_limited_stack_moves_gradually_and_reaches_the_targets(neck):
     expected = track_stack(stack0, end, eq0)
     assert expected.status == 'ok' and not expected.jumps
     np.testing.assert_allclose(eq.theta, expected.final.theta, atol=1e-9)
-    assert all(slot.target is None for slot in h.node._slots)   # motion finished
+    assert all(h.node.simulator.target(i) is None for i in range(3))   # motion finished
     assert not h.jumps and h.node.counters['jumps_total'] == 0
     diag = _wait_diagnostics(h)
     v = values(_node_status(diag))
@@ -242,7 +242,8 @@ def _unstable(real):
 def test_tracker_error_in_a_stack_keeps_the_state_unchanged(neck, monkeypatch, failure, reason):
     """The node's explicit paths for a tracker that raises or hands back a non-minimum
     (injected: the real tracker reaches neither from a verified state)."""
-    import tensegrity_ros.node as node_module
+    # the tracker is injected where the node's simulator calls it
+    import tensegrity_ros.core.mechanisms as node_module
     n = neck()
     h = n.h
     real = node_module.track_stack

@@ -1,0 +1,95 @@
+"""What a simulator call did: an :class:`Outcome` with a status, and the events on the way.
+
+Modelled on scipy's result objects (``OptimizeResult``, ``RootResults``): a call never
+raises for input a user could send (a NaN, an out-of-range target); it answers with
+``status`` and a reason.  The events are plain records the caller (the node, a test,
+a script) turns into messages, logs or counts.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Outcome statuses.
+OK = 'ok'               # accepted; every path tracked to its end (or nothing to do)
+FAILED = 'failed'       # accepted; a path stopped early: the state is the last verified one
+REFUSED = 'refused'     # bad input: nothing changed; ``reason`` and ``message`` say why
+
+#: Refusal reasons (the node counts them as ``rejected_<reason>``).
+NON_FINITE = 'non_finite'
+OUT_OF_RANGE = 'out_of_range'
+PARAMETER_VALUE = 'parameter_value'
+
+
+@dataclass(frozen=True)
+class Jump:
+    """The mechanism jumped: its branch ended (``fold``) or lost stability (``branch_point``).
+
+    ``modules`` are every module's parameters at the critical point (``modules[i].rho`` is
+    module i's critical actuator length); ``from_theta`` (N x 2) the critical configuration,
+    ``to_theta`` (N x 2) where it landed.  ``module`` is the module whose command moved
+    the mechanism there, ``cause`` names the command, ``count`` is the running jump number
+    since the start or the last reset.
+    """
+
+    kind: str
+    s: float
+    modules: tuple
+    from_theta: np.ndarray
+    to_theta: np.ndarray
+    ambiguous: bool
+    module: int
+    cause: str
+    count: int
+
+
+@dataclass(frozen=True)
+class TrackingFailure:
+    """A path could not be tracked to its end; ``text`` says where and why.  The state
+    is the last verified one (where tracking stopped, or unchanged)."""
+
+    module: int
+    text: str
+
+
+@dataclass(frozen=True)
+class JumpAhead:
+    """Early warning: the target ``rho`` of ``module`` lies beyond the end of the live
+    branch's operation range (``end``, a fold or branch point): the mechanism will jump."""
+
+    module: int
+    rho: float
+    end: object
+    cause: str
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """Result of one simulator call: ``status`` (``ok``, ``failed`` or ``refused``), for a
+    refusal its ``reason`` and ``message``, and the ``events`` (jumps, failures, warnings)
+    in the order they happened."""
+
+    status: str = OK
+    events: tuple = ()
+    reason: str = ''
+    message: str = ''
+
+    @property
+    def accepted(self):
+        return self.status != REFUSED
+
+    def of_type(self, kind):
+        """The events that are instances of ``kind``."""
+        return [e for e in self.events if isinstance(e, kind)]
+
+
+def refused(reason, message):
+    return Outcome(status=REFUSED, reason=reason, message=message)
+
+
+def combined(outcomes):
+    """One outcome for several accepted steps: failed if any failed, every event in order."""
+    events = tuple(e for o in outcomes for e in o.events)
+    failed = any(o.status == FAILED for o in outcomes)
+    return Outcome(status=FAILED if failed else OK, events=events)

@@ -1,0 +1,370 @@
+"""The mechanism as a user drives it: a neck of N modules (N = 1 included), ROS-free.
+
+A :class:`Simulator` always holds a verified stable equilibrium.  Actuator targets
+(with an optional speed limit per module), loads and parameter changes move the
+parameters along straight paths that the tracker follows; :meth:`Simulator.advance`
+moves speed-limited actuators on in time.  Every call returns an
+:class:`~tensegrity_ros.core.events.Outcome`: ``ok``, ``failed`` (a path stopped early,
+the state is the last verified one) or ``refused`` (bad input, nothing changed), with
+the jumps, tracking failures and early warnings on the way.  Bad input a user could send
+never raises; only programming errors (a wrong module index, a wrong type) do.
+
+One module and a neck share every line here: the solver behind (:mod:`.mechanisms`)
+is the exact one-module tracker for N = 1 and the coupled stack tracker otherwise.
+Times are integer nanoseconds (as ROS clocks give them), so elapsed times are exact.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from . import events as ev
+from .continuation import TrackingError
+from .events import JumpAhead, Outcome, TrackingFailure
+from .mechanisms import make_jump, mechanism_for
+from .module import InvalidParameterError, ModuleParams
+from .tracking import ModuleJump
+
+#: A published state must have lambda_min > this * |lambda_max| (a verified minimum).
+DEFINITENESS_TOL = 1e-9
+#: What a failing solver may raise on a bad path (anything else is a bug and propagates).
+SOLVER_ERRORS = (TrackingError, ValueError, ArithmeticError, np.linalg.LinAlgError)
+#: Forces per loaded node: which ModuleParams fields a force at A3 / A4 sets.
+FORCE_FIELDS = {'a3': ('f3x', 'f3y'), 'a4': ('f4x', 'f4y')}
+
+
+@dataclass(frozen=True)
+class ModuleLimits:
+    """Per-module settings: accepted actuator targets, speed limit, warning threshold."""
+
+    rho_min: float = 0.0
+    rho_max: float = math.inf
+    max_rho_rate: float = 0.0       # m/s; 0 = no limit (a command is one path)
+    warn_margin: float = 0.05       # status 'warn' below this normalized margin
+
+
+@dataclass(frozen=True)
+class ModuleStatus:
+    """Everything a status report of one module shows (see msg_docs/equilibrium.md).
+
+    ``level`` is ``ok``, ``warn`` (near a jump, or tracking stopped early) or ``error``
+    (not a stable equilibrium: never expected).
+    """
+
+    level: str
+    message: str
+    params: ModuleParams
+    eq: object
+    normalized: float
+    num_equilibria: object
+    num_stable: object
+    operation_range: object
+    last_jump: object
+    jumps_total: int
+    tracking: str
+    warn_margin: float
+
+
+class _Module:
+    """Mutable per-module state of the simulator: settings, motion, jump record."""
+
+    def __init__(self, limits):
+        self.limits = limits
+        self.target = None              # pending rho target of a speed-limited actuator
+        self.cause = ''
+        self.stamp_ns = 0               # time the actuator was last moved to
+        self.last_jump = None
+        self.tracking = 'ok'
+
+
+class Simulator:
+    """A neck of ``len(modules)`` modules (bottom to top), started in the stable
+    equilibrium whose basin holds ``initial_theta`` (one [t1, t2] per module).
+
+    ``names`` label the modules in messages (default ``m0``, ``m1`` ...).  Raises
+    ``ValueError`` if there is no stable equilibrium to start from.
+    """
+
+    def __init__(self, modules, initial_theta, limits=None, names=None):
+        modules = tuple(modules)
+        if not modules:
+            raise ValueError('a simulator needs at least one module')
+        self.names = tuple(names) if names is not None else tuple(
+            f'm{i}' for i in range(len(modules)))
+        if len(self.names) != len(modules):
+            raise ValueError(f'{len(self.names)} names for {len(modules)} modules')
+        limits = list(limits) if limits is not None else [ModuleLimits()] * len(modules)
+        self._mechanism = mechanism_for(len(modules))
+        self._slots = [_Module(lim) for lim in limits]
+        self.modules = None             # live ModuleParams, bottom to top
+        self.state = None               # live verified equilibrium (N = 1: Equilibrium)
+        self.jumps_total = 0
+        self.revision = 0               # bumped whenever anything a status shows changes
+        started = self.reset(modules, initial_theta)
+        if not started.accepted:
+            raise ValueError(started.message)
+
+    # -- what it is now -----------------------------------------------------------------
+
+    def __len__(self):
+        return len(self._slots)
+
+    def module(self, index):
+        """(live ModuleParams, verified view with theta1, theta2, actuator_force ...)."""
+        return self.modules[index], self._views[index]
+
+    def target(self, index):
+        """The pending target of a speed-limited actuator, or None when it is idle."""
+        return self._slots[index].target
+
+    def limits(self, index):
+        return self._slots[index].limits
+
+    def module_nodes(self, index):
+        """A1..A4 of a module, (4, 2), in the base frame of the bottom module."""
+        return self._mechanism.module_nodes(self.modules, self.state, index)
+
+    def head(self):
+        """((x, y), angle): midpoint and direction of the top chord A4 -> A3."""
+        return self._mechanism.head(self.modules, self.state)
+
+    @property
+    def stable(self):
+        return bool(self.state.stable)
+
+    def status(self, index):
+        """The :class:`ModuleStatus` of one module (exact counts and range for N = 1)."""
+        params, eq = self.module(index)
+        slot = self._slots[index]
+        normalized = self._mechanism.normalized_margin(self.modules, self.state)
+        num, num_stable = self._mechanism.counts(self.modules)
+        level, message = self._level(slot, eq, normalized)
+        return ModuleStatus(
+            level=level, message=message, params=params, eq=eq, normalized=normalized,
+            num_equilibria=num, num_stable=num_stable,
+            operation_range=self._mechanism.operation_range(self.modules, self.state),
+            last_jump=slot.last_jump, jumps_total=self.jumps_total, tracking=slot.tracking,
+            warn_margin=slot.limits.warn_margin)
+
+    def _level(self, slot, eq, normalized):
+        if not eq.stable:
+            return 'error', 'not a stable equilibrium'
+        if slot.tracking != 'ok':
+            return 'warn', f'tracking stopped early: {slot.tracking}'
+        if normalized < slot.limits.warn_margin:
+            return 'warn', (f'stable, near a jump: stability margin {eq.stability_margin:.4g} '
+                            f'{self._mechanism.margin_unit} (normalized {normalized:.3g} '
+                            f'< warn_margin {slot.limits.warn_margin:g})')
+        return 'ok', f'stable, stability margin {eq.stability_margin:.4g}'
+
+    def limits_refusal(self, index, rho_min, rho_max):
+        """Why [rho_min, rho_max] cannot be the module's limits now ('' if it can): the
+        actuator and its pending target must stay inside."""
+        rho, target = self.modules[index].rho, self._slots[index].target
+        if not rho_min <= rho <= rho_max:
+            return (f'the actuator is at rho={rho!r}, outside the requested '
+                    f'[rho_min, rho_max] = [{rho_min!r}, {rho_max!r}]')
+        if target is not None and not rho_min <= target <= rho_max:
+            return (f'the pending target rho={target!r} is outside the requested '
+                    f'[rho_min, rho_max] = [{rho_min!r}, {rho_max!r}]')
+        return ''
+
+    # -- commands -----------------------------------------------------------------------
+
+    def command_rho(self, index, rho, now_ns, cause='rho_cmd'):
+        """Actuator target of one module (see :meth:`command_rhos`)."""
+        return self.command_rhos({index: rho}, now_ns, cause)
+
+    def command_rhos(self, targets, now_ns, cause='joint_commands'):
+        """Actuator targets {module index: rho}, all received at ``now_ns``.
+
+        Refused as a whole if any target is not finite or outside its module's limits.
+        Without speed limits every target is one straight path (all modules together);
+        a speed-limited module moves toward its target in :meth:`advance`.
+        """
+        for index, rho in targets.items():
+            refusal = self._rho_refusal(index, rho)
+            if refusal is not None:
+                return refusal
+        warnings = tuple(w for w in (self._jump_ahead(i, rho, cause)
+                                     for i, rho in targets.items()) if w is not None)
+        if not any(self._slots[i].limits.max_rho_rate > 0.0 for i in targets):
+            for index in targets:
+                self._slots[index].target = None
+            ends = {i: self.modules[i].with_(rho=rho) for i, rho in targets.items()}
+            moved = self._move(ends, cause, next(iter(targets)))
+        else:
+            moved = ev.combined(self._retarget(i, rho, now_ns, cause)
+                                for i, rho in targets.items())
+        return replace(moved, events=warnings + moved.events)
+
+    def set_force(self, index, node, force, now_ns, cause=None):
+        """Force (fx, fy) at node ``'a3'`` or ``'a4'`` of a module (N, base frame)."""
+        fx, fy = (float(v) for v in force)
+        cause = cause or f'force_{node}'
+        if not (math.isfinite(fx) and math.isfinite(fy)):
+            return ev.refused(ev.NON_FINITE, f'({fx!r}, {fy!r}) is not finite')
+        changes = dict(zip(FORCE_FIELDS[node], (fx, fy)))
+        try:
+            self.modules[index].with_(**changes)
+        except InvalidParameterError as exc:         # beyond the supported magnitudes
+            return ev.refused(ev.OUT_OF_RANGE, str(exc))
+        return self.set_parameters({index: changes}, now_ns, cause)
+
+    def set_parameters(self, changes, now_ns, cause):
+        """Change module parameters {module index: {field: value}} (any
+        :class:`ModuleParams` field but rho): every change is one straight path, the
+        jumps it causes are attributed to the first module named.  Pending speed-limited
+        motion of those modules is first advanced to ``now_ns``."""
+        try:
+            for index, fields in changes.items():
+                if 'rho' in fields:
+                    raise InvalidParameterError('rho is commanded, not set: use command_rho')
+                self.modules[index].with_(**fields)
+        except (InvalidParameterError, TypeError) as exc:
+            return ev.refused(ev.PARAMETER_VALUE, str(exc))
+        advanced = [self._advance_module(i, now_ns) for i in changes]
+        ends = {i: self.modules[i].with_(**fields) for i, fields in changes.items()}
+        return ev.combined(advanced + [self._move(ends, cause, next(iter(changes)))])
+
+    def set_limits(self, index, limits, now_ns):
+        """New :class:`ModuleLimits` of a module (pending motion is first advanced to
+        ``now_ns`` under the old ones); refused if the actuator or its target would lie
+        outside."""
+        reason = self.limits_refusal(index, limits.rho_min, limits.rho_max)
+        if reason:
+            return ev.refused(ev.PARAMETER_VALUE, reason)
+        advanced = self._advance_module(index, now_ns)
+        self._slots[index].limits = limits
+        self.revision += 1
+        return advanced
+
+    def advance(self, now_ns):
+        """Move every speed-limited actuator toward its target, up to time ``now_ns``."""
+        return ev.combined([self._advance_module(i, now_ns)
+                            for i, slot in enumerate(self._slots) if slot.target is not None])
+
+    def reset(self, modules, initial_theta):
+        """Start over: settle ``modules`` from ``initial_theta`` (one [t1, t2] per module);
+        motion, jumps and tracking status are cleared.  Refused (state unchanged) if no
+        stable equilibrium is reached."""
+        modules = tuple(modules)
+        if len(modules) != len(self._slots):
+            raise ValueError(f'{len(modules)} modules given, the simulator has '
+                             f'{len(self._slots)}')
+        try:
+            state = self._mechanism.settle(modules, [list(t) for t in initial_theta])
+        except SOLVER_ERRORS as exc:
+            return ev.refused(ev.PARAMETER_VALUE,
+                              f'no stable equilibrium from initial_theta: {exc}')
+        if not state.stable:
+            return ev.refused(ev.PARAMETER_VALUE, 'no stable equilibrium from initial_theta: '
+                                                  'settled on a state that is not a stable '
+                                                  'equilibrium')
+        self._set_state(modules, state)
+        self.jumps_total = 0
+        for slot in self._slots:
+            slot.target, slot.last_jump, slot.tracking = None, None, 'ok'
+        return Outcome()
+
+    # -- inside ---------------------------------------------------------------------------
+
+    def _rho_refusal(self, index, rho):
+        limits = self._slots[index].limits
+        if not math.isfinite(rho):
+            return ev.refused(ev.NON_FINITE, f'{rho!r} is not finite')
+        if not limits.rho_min <= rho <= limits.rho_max:
+            return ev.refused(ev.OUT_OF_RANGE, f'{rho!r} outside [rho_min, rho_max] = '
+                                               f'[{limits.rho_min}, {limits.rho_max}]')
+        return None
+
+    def _jump_ahead(self, index, rho, cause):
+        """A :class:`JumpAhead` if ``rho`` lies beyond a fold or branch point of the live
+        branch's operation range (one module only: the exact range)."""
+        found = self._mechanism.operation_range(self.modules, self.state)
+        if found is None:
+            return None
+        end = found.lower if rho < found.lower.rho else (
+            found.upper if rho > found.upper.rho else None)
+        if end is None or end.kind == 'limit':
+            return None
+        return JumpAhead(module=index, rho=rho, end=end, cause=cause)
+
+    def _retarget(self, index, rho, now_ns, cause):
+        """A speed-limited actuator: advance to now, then head for the new target (an
+        unlimited one goes there at once)."""
+        slot = self._slots[index]
+        if slot.limits.max_rho_rate <= 0.0:
+            slot.target = None
+            return self._move({index: self.modules[index].with_(rho=rho)}, cause, index)
+        advanced = self._advance_module(index, now_ns)
+        slot.target = None if rho == self.modules[index].rho else rho
+        slot.cause = cause
+        slot.stamp_ns = now_ns
+        return advanced
+
+    def _advance_module(self, index, now_ns):
+        """Move one actuator toward its target by max_rho_rate * elapsed time."""
+        slot = self._slots[index]
+        if slot.target is None:
+            return Outcome()
+        dt = max(0, now_ns - slot.stamp_ns) * 1e-9
+        rate, rho, target = slot.limits.max_rho_rate, self.modules[index].rho, slot.target
+        if rate <= 0.0 or abs(target - rho) <= rate * dt:
+            new_rho, slot.target = target, None
+        elif dt <= 0.0:
+            return Outcome()
+        else:
+            new_rho = rho + math.copysign(rate * dt, target - rho)
+        slot.stamp_ns = now_ns
+        moved = self._move({index: self.modules[index].with_(rho=new_rho)}, slot.cause, index)
+        if moved.status == ev.FAILED:
+            slot.target = None
+        return moved
+
+    def _move(self, ends, cause, trigger):
+        """Track the live state to the modules ``ends`` {index: ModuleParams} replace, on
+        one straight path; a failure keeps the last verified state."""
+        start = self.modules
+        end = tuple(ends.get(i, m) for i, m in enumerate(start))
+        if end == start:
+            return Outcome()
+        try:
+            motion = self._mechanism.track(start, end, self.state)
+        except SOLVER_ERRORS as exc:
+            return self._failed(trigger, f'{cause}: {exc}')
+        eigenvalues = motion.final.eigenvalues
+        if not eigenvalues[0] > DEFINITENESS_TOL * abs(eigenvalues[-1]):
+            return self._failed(trigger, f'{cause}: tracker returned an unstable state')
+        self._set_state(motion.end, motion.final)
+        jumps = tuple(self._record_jump(raw, trigger, cause) for raw in motion.jumps)
+        if motion.status != 'ok':
+            failed = self._failed(trigger, f'{cause}: stopped at {self.names[trigger]} '
+                                           f'rho={self.modules[trigger].rho!r}: '
+                                           f'{motion.message}')
+            return replace(failed, events=jumps + failed.events)
+        for slot in self._slots:
+            slot.tracking = 'ok'
+        return Outcome(events=jumps)
+
+    def _failed(self, index, text):
+        self._slots[index].tracking = text
+        self.revision += 1
+        return Outcome(status=ev.FAILED, events=(TrackingFailure(module=index, text=text),))
+
+    def _record_jump(self, raw, trigger, cause):
+        """Count a jump; every module records it (a neck jumps as a whole)."""
+        self.jumps_total += 1
+        jump = make_jump(raw, module=trigger, cause=cause, count=self.jumps_total)
+        for i, slot in enumerate(self._slots):
+            slot.last_jump = ModuleJump(kind=jump.kind, s=jump.s, params=jump.modules[i],
+                                        from_theta=jump.from_theta[i],
+                                        to_theta=jump.to_theta[i], ambiguous=jump.ambiguous)
+        return jump
+
+    def _set_state(self, modules, state):
+        self.modules, self.state = tuple(modules), state
+        self._views = self._mechanism.views(self.modules, state)
+        self.revision += 1

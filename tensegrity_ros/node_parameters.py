@@ -1,0 +1,226 @@
+"""The node's parameters: declarations (descriptors), and their values -> simulator configuration.
+
+``MODULE_PARAMETERS`` (per module, ``<m>.<name>``) and ``NODE_PARAMETERS`` are the
+parameter contract (DESIGN.md section 5, README's parameter table mirrors them).
+The functions below read parameter values (a ``{name: value}`` dict) into what the
+core simulator takes (:class:`ModuleParams`, :class:`ModuleLimits`, start angles)
+and say why a set of values is refused.
+"""
+from __future__ import annotations
+
+import math
+
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.parameter import Parameter
+
+from tensegrity_ros.core import InvalidParameterError, ModuleParams
+from tensegrity_ros.core.simulator import ModuleLimits
+from tensegrity_ros.log_text import shown
+
+#: How many modules one node hosts at most (a stack of N modules has 4N coupled unknowns;
+#: a command costs ~N^2 * 0.1 ms).
+MAX_MODULES = 20
+
+
+def descriptor(description, *, type_, constraints='', read_only=False, range_=None):
+    d = ParameterDescriptor(description=description, type=type_.value,
+                            additional_constraints=constraints, read_only=read_only)
+    if range_ is not None:
+        d.floating_point_range = [FloatingPointRange(from_value=float(range_[0]),
+                                                     to_value=float(range_[1]), step=0.0)]
+    return d
+
+
+DOUBLE = Parameter.Type.DOUBLE
+DOUBLE_ARRAY = Parameter.Type.DOUBLE_ARRAY
+STRING = Parameter.Type.STRING
+STRING_ARRAY = Parameter.Type.STRING_ARRAY
+
+# Kinds of per-module parameters: what a runtime change does.
+PHYSICAL = 'physical'    # geometry, stiffness, masses: tracked like a command
+FORCE = 'force'          # force_a3/a4: tracked like a force command
+INITIAL = 'initial'      # used at start-up and by reset
+LIMIT = 'limit'          # rho_min/rho_max: command validation
+SETTING = 'setting'      # rates and thresholds
+
+#: Per-module parameters ``<m>.<name>``: (name, default, type, kind, description, constraints,
+#: FloatingPointRange or None).  The README parameter table mirrors this.
+MODULE_PARAMETERS = (
+    ('L1', 1.0, DOUBLE, PHYSICAL, 'Length of rod A1A3 (m).', '> 0', None),
+    ('L2', 1.0, DOUBLE, PHYSICAL, 'Length of rod A2A4 (m).', '> 0', None),
+    ('k', 100.0, DOUBLE, PHYSICAL,
+     'Stiffness of all three springs a, b, c (N/m), unless ka/kb/kc override it.', '> 0', None),
+    ('ka', 0.0, DOUBLE, PHYSICAL, 'Stiffness of spring a = A2A3 (N/m); 0.0 = use k.', '>= 0', None),
+    ('kb', 0.0, DOUBLE, PHYSICAL, 'Stiffness of spring b = A1A4 (N/m); 0.0 = use k.', '>= 0', None),
+    ('kc', 0.0, DOUBLE, PHYSICAL, 'Stiffness of spring c = A3A4 (N/m); 0.0 = use k.', '>= 0', None),
+    ('m1', 0.0, DOUBLE, PHYSICAL,
+     'Mass of rod A1A3 (kg); its weight acts along -y of the base frame.', '>= 0', None),
+    ('m2', 0.0, DOUBLE, PHYSICAL, 'Mass of rod A2A4 (kg).', '>= 0', None),
+    ('force_a3', [0.0, 0.0], DOUBLE_ARRAY, FORCE,
+     'Force [fx, fy] at A3 (N, base frame; fy > 0 pulls up) at start-up and on reset; '
+     'setting it at runtime applies it at once, tracked like a force_a3 message.',
+     'two finite numbers', None),
+    ('force_a4', [0.0, 0.0], DOUBLE_ARRAY, FORCE,
+     'Force [fx, fy] at A4 (N), as force_a3.', 'two finite numbers', None),
+    ('rho_initial', 0.75, DOUBLE, INITIAL,
+     'Actuator length at start-up and on reset (m).', 'rho_min <= rho_initial <= rho_max', None),
+    ('initial_theta', [0.7, 0.7], DOUBLE_ARRAY, INITIAL,
+     'Start guess [theta1, theta2] (rad): the node starts (and resets) in the stable '
+     'equilibrium whose basin holds it; picks the branch.', 'two finite numbers', None),
+    ('rho_min', 0.05, DOUBLE, LIMIT, 'Smallest accepted actuator command (m).',
+     '0 < rho_min < rho_max; current and initial rho must stay inside', None),
+    ('rho_max', 1.95, DOUBLE, LIMIT, 'Largest accepted actuator command (m).',
+     'rho_max > rho_min; current and initial rho must stay inside', None),
+    ('max_rho_rate', 0.0, DOUBLE, SETTING,
+     'Actuator speed limit (m/s). 0 = no limit: a command is one straight path. '
+     'Otherwise the actuator moves toward the latest target at this speed, one tracked '
+     'segment per timer tick (publish_rate) and per command.', '>= 0', (0.0, 100.0)),
+    ('warn_margin', 0.05, DOUBLE, SETTING,
+     'equilibrium is WARN (near a jump) when the stability margin (smallest Hessian '
+     'eigenvalue, J/rad^2) is below warn_margin * min(ka, kb, kc) * L1 * L2.', '0..1',
+     (0.0, 1.0)),
+)
+_MODULE_SPEC = {p[0]: p for p in MODULE_PARAMETERS}
+
+#: Slowest markers rate other than 0 (off): a slower one is a typo (5e-324 would give a
+#: timer period that cannot be represented).
+MIN_MARKERS_RATE = 0.01
+
+#: Node-wide parameters: (name, default, type, description, constraints, range, read_only).
+NODE_PARAMETERS = (
+    ('publish_rate', 50.0, DOUBLE,
+     'Rate (Hz) of the joint_states timer; also the segment rate of speed-limited motion and '
+     'the highest rate of equilibrium updates.', '1..1000 Hz', (1.0, 1000.0), False),
+    ('markers_rate', 10.0, DOUBLE, 'Rate (Hz) of the markers topic; 0 = off.',
+     f'0 (off) or {MIN_MARKERS_RATE:g}..100 Hz', (0.0, 100.0), False),
+    ('diagnostics_rate', 1.0, DOUBLE, 'Rate (Hz) of /diagnostics.', '0.1..100 Hz',
+     (0.1, 100.0), False),
+    ('frame_id', 'tensegrity_base', STRING,
+     'Frame of the markers and head_pose: the base frame of the bottom module (origin A1, '
+     'x along A1->A2, y up).',
+     'non-empty', None, False),
+)
+_NODE_SPEC = {p[0]: p for p in NODE_PARAMETERS}
+
+
+def _effective_stiffness(k, override):
+    """``<m>.ka/kb/kc`` of 0.0 means "use ``<m>.k``"."""
+    return override if override > 0.0 else k
+
+
+def _finite_pair(value):
+    return (value is not None and len(value) == 2
+            and all(isinstance(v, float) and math.isfinite(v) for v in value))
+
+
+def declarations(names):
+    """(name, default, ParameterDescriptor) of every node and module parameter."""
+    out = []
+    for name, default, type_, description, constraints, range_, read_only in NODE_PARAMETERS:
+        out.append((name, default, descriptor(description, type_=type_, constraints=constraints,
+                                               range_=range_, read_only=read_only)))
+    for m in names:
+        for name, default, type_, _kind, description, constraints, range_ in MODULE_PARAMETERS:
+            out.append((f'{m}.{name}', default, descriptor(
+                description, type_=type_, constraints=constraints, range_=range_)))
+    return out
+
+
+def parameter_types(names):
+    """{parameter name: Parameter.Type} of every declared parameter."""
+    types = {name: spec[2] for name, spec in _NODE_SPEC.items()}
+    for m in names:
+        types.update({f'{m}.{name}': spec[2] for name, spec in _MODULE_SPEC.items()})
+    return types
+
+
+def kind_of(key):
+    """What a runtime change of module parameter ``key`` does (PHYSICAL, FORCE ...)."""
+    return _MODULE_SPEC[key][3]
+
+
+def module_getter(module, values):
+    """get(key): the value of ``<module>.<key>`` in ``values`` (arrays as float lists)."""
+    prefix = module + '.'
+
+    def get(key):
+        value = values[prefix + key]
+        if _MODULE_SPEC[key][2] == DOUBLE_ARRAY and value is not None:
+            return [float(v) for v in value]
+        return value
+    return get
+
+
+def module_params(get, rho, force_a3, force_a4):
+    """The :class:`ModuleParams` of the values ``get`` reads, at ``rho`` and these forces."""
+    k = get('k')
+    return ModuleParams(
+        rho=rho, L1=get('L1'), L2=get('L2'),
+        ka=_effective_stiffness(k, get('ka')), kb=_effective_stiffness(k, get('kb')),
+        kc=_effective_stiffness(k, get('kc')),
+        f3x=force_a3[0], f3y=force_a3[1], f4x=force_a4[0], f4y=force_a4[1],
+        m1=get('m1'), m2=get('m2'))
+
+
+def initial_params(get):
+    """The module at start-up and on reset: rho_initial and the force parameters."""
+    return module_params(get, get('rho_initial'), get('force_a3'), get('force_a4'))
+
+
+def module_limits(get):
+    return ModuleLimits(rho_min=get('rho_min'), rho_max=get('rho_max'),
+                        max_rho_rate=get('max_rho_rate'), warn_margin=get('warn_margin'))
+
+
+#: The ModuleParams fields a runtime parameter change may set (all but rho).
+DESIGN_FIELDS = ('L1', 'L2', 'ka', 'kb', 'kc', 'f3x', 'f3y', 'f4x', 'f4y', 'm1', 'm2')
+
+
+def design_changes(get, live, keys):
+    """{field: value} of a module whose parameters ``keys`` changed: the design from the
+    parameter values; forces from them only if a force parameter is among ``keys``
+    (otherwise the live forces, which force messages may have changed)."""
+    f3 = get('force_a3') if 'force_a3' in keys else (live.f3x, live.f3y)
+    f4 = get('force_a4') if 'force_a4' in keys else (live.f4x, live.f4y)
+    end = module_params(get, live.rho, f3, f4)
+    return {name: getattr(end, name) for name in DESIGN_FIELDS}
+
+
+def check_module_values(m, get):
+    """Why the values of module ``m``'s parameters are refused, or '' if they are fine."""
+    for key in ('L1', 'L2', 'k'):
+        v = get(key)
+        if not (math.isfinite(v) and v > 0.0):
+            return f'{m}.{key} must be finite and > 0, got {v!r}'
+    for key, meaning in (('ka', '0.0 = use k'), ('kb', '0.0 = use k'),
+                         ('kc', '0.0 = use k'), ('m1', 'kg'), ('m2', 'kg')):
+        v = get(key)
+        if not (math.isfinite(v) and v >= 0.0):
+            return f'{m}.{key} must be finite and >= 0 ({meaning}), got {v!r}'
+    for key in ('force_a3', 'force_a4', 'initial_theta'):
+        v = get(key)
+        if not _finite_pair(v):
+            return f'{m}.{key} must be two finite numbers, got {shown(v)}'
+    lo, hi, initial = get('rho_min'), get('rho_max'), get('rho_initial')
+    if not (math.isfinite(lo) and lo > 0.0):
+        return f'{m}.rho_min must be finite and > 0, got {lo!r}'
+    if not (math.isfinite(hi) and hi > lo):
+        return f'{m}.rho_max must be finite and > rho_min ({lo!r}), got {hi!r}'
+    if not (math.isfinite(initial) and lo <= initial <= hi):
+        return f'{m}.rho_initial={initial!r} must lie in [rho_min, rho_max] = [{lo!r}, {hi!r}]'
+    try:
+        initial_params(get)
+    except InvalidParameterError as exc:
+        return f'{m}: {exc}'
+    return ''
+
+
+def check_node_values(values):
+    """Why the node-wide parameter values are refused, or '' if they are fine."""
+    if not values['frame_id']:
+        return 'frame_id must not be empty'
+    rate = values['markers_rate']
+    if rate != 0.0 and not MIN_MARKERS_RATE <= rate <= 100.0:
+        return (f'markers_rate must be 0 (off) or {MIN_MARKERS_RATE:g}..100 Hz (a period of '
+                f'at most {1 / MIN_MARKERS_RATE:g} s), got {rate!r}')
+    return ''

@@ -1,0 +1,331 @@
+"""The core simulator without ROS: speed limits, jumps, hysteresis, reset, bad input,
+parameter changes, one code path for one module and a neck.
+
+References: the paper's fig. 8a (C1 ~ 0.155 a branch point, C2 ~ 0.87 a fold), plain
+arithmetic for the speed limit, and the trackers (``track_module`` / ``track_stack``)
+called directly on the same straight paths: the simulator must add no motion of its own.
+"""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+import tensegrity_ros.core.mechanisms as mechanisms
+from tensegrity_ros.core import ModuleParams, TrackingError, settle, track_module
+from tensegrity_ros.core.events import Jump, JumpAhead, TrackingFailure
+from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
+
+LOWER = [-1.0, -1.0]                 # fig. 8a: the lower stable branch at rho = 0.5
+S = 1_000_000_000                    # ns per second
+
+
+def fig8a(rho=0.5):
+    return ModuleParams.paper(rho, F3=5.0, F4=5.0)
+
+
+def fig8a_simulator(**limits):
+    return Simulator([fig8a()], [LOWER], [ModuleLimits(0.05, 1.95, **limits)])
+
+
+def verified_minimum(sim):
+    ev = np.asarray(sim.state.eigenvalues)
+    return ev[0] > 1e-9 * abs(ev[-1])
+
+
+# ---------------------------------------------------------------------------
+# one module
+
+
+def test_starts_in_the_basin_of_the_guess():
+    sim = fig8a_simulator()
+    params, eq = sim.module(0)
+    assert params == fig8a() and eq.theta1 < 0 and eq.theta2 < 0
+    np.testing.assert_allclose(eq.theta, settle(fig8a(), LOWER).theta, atol=0)
+    assert sim.status(0).level == 'ok' and sim.status(0).num_stable == 2
+
+
+def test_no_stable_start_is_a_value_error_naming_the_cause(monkeypatch):
+    monkeypatch.setattr(mechanisms, 'settle', _raises_tracking_error)
+    with pytest.raises(ValueError, match='no stable equilibrium from initial_theta: injected'):
+        fig8a_simulator()
+
+
+def test_a_command_is_the_trackers_straight_path():
+    sim = fig8a_simulator()
+    outcome = sim.command_rho(0, 0.3, 0)
+    expected = track_module(fig8a(), fig8a(0.3), settle(fig8a(), LOWER).theta)
+    assert outcome.status == 'ok' and not outcome.events
+    np.testing.assert_allclose(sim.module(0)[1].theta, expected.final.theta, atol=0)
+    assert sim.modules == (fig8a(0.3),)
+
+
+def test_branch_point_jump_then_hysteresis():
+    sim = fig8a_simulator()
+    outcome = sim.command_rho(0, 0.1, 0)
+    [jump] = outcome.of_type(Jump)
+    assert jump.kind == 'branch_point' and 0.1 < jump.modules[0].rho < 0.2     # C1
+    assert np.all(jump.from_theta[0] < 0) and np.all(jump.to_theta[0] > 0)
+    assert (jump.module, jump.cause, jump.count) == (0, 'rho_cmd', 1)
+    upper = sim.module(0)[1].theta
+    assert np.all(upper > 0)
+    status = sim.status(0)
+    assert status.jumps_total == 1 and status.last_jump.kind == 'branch_point'
+    # back to the start: the mechanism stays on the upper branch
+    back = sim.command_rho(0, 0.5, 0)
+    assert not back.of_type(Jump) and np.all(sim.module(0)[1].theta > 0)
+    assert not np.allclose(sim.module(0)[1].theta, settle(fig8a(), LOWER).theta)
+
+
+def test_a_command_beyond_the_fold_is_warned_first_then_jumps():
+    sim = fig8a_simulator()
+    outcome = sim.command_rho(0, 1.2, 0)
+    warning, jump = outcome.events
+    assert isinstance(warning, JumpAhead) and isinstance(jump, Jump)
+    assert warning.end.kind == 'fold' and 0.8 < warning.end.rho < 0.95         # C2
+    assert jump.kind == 'fold' and jump.modules[0].rho == pytest.approx(warning.end.rho,
+                                                                         abs=1e-8)
+
+
+def test_speed_limit_moves_at_the_rate_and_reaches_the_target():
+    rate = 0.5
+    sim = fig8a_simulator(max_rho_rate=rate)
+    assert sim.command_rho(0, 0.7, 0).status == 'ok'
+    assert sim.modules[0].rho == 0.5 and sim.target(0) == 0.7      # nothing moved yet
+    sim.advance(S // 10)                                           # 0.1 s: 0.05 m
+    assert sim.modules[0].rho == pytest.approx(0.55, abs=1e-15)
+    expected = track_module(fig8a(), fig8a(sim.modules[0].rho), settle(fig8a(), LOWER).theta)
+    np.testing.assert_allclose(sim.module(0)[1].theta, expected.final.theta, atol=1e-9)
+    sim.advance(S // 10)                                           # same time: no motion
+    assert sim.modules[0].rho == pytest.approx(0.55, abs=1e-15)
+    sim.advance(S)                                                 # long enough: at target
+    assert sim.modules[0].rho == 0.7 and sim.target(0) is None
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.integers(1, 200_000_000), min_size=1, max_size=8))
+def test_speed_limit_is_never_exceeded(gaps):
+    rate = 0.4
+    sim = fig8a_simulator(max_rho_rate=rate)
+    sim.command_rho(0, 0.8, 0)
+    now, rho = 0, sim.modules[0].rho
+    for gap in gaps:
+        now += gap
+        sim.advance(now)
+        new = sim.modules[0].rho
+        assert 0.0 <= new - rho <= rate * gap * 1e-9 + 1e-15
+        assert verified_minimum(sim)
+        rho = new
+
+
+def test_retarget_moves_on_from_where_the_actuator_is():
+    sim = fig8a_simulator(max_rho_rate=1.0)
+    sim.command_rho(0, 0.9, 0)
+    sim.command_rho(0, 0.4, S // 10)                 # at 0.6 by then, now heading down
+    assert sim.modules[0].rho == pytest.approx(0.6) and sim.target(0) == 0.4
+    sim.advance(S)
+    assert sim.modules[0].rho == 0.4
+
+
+@pytest.mark.parametrize('call, reason', [
+    (lambda sim: sim.command_rho(0, math.nan, 0), 'non_finite'),
+    (lambda sim: sim.command_rho(0, 2.5, 0), 'out_of_range'),
+    (lambda sim: sim.set_force(0, 'a3', (math.inf, 0.0), 0), 'non_finite'),
+    (lambda sim: sim.set_force(0, 'a4', (0.0, -1e60), 0), 'out_of_range'),
+    (lambda sim: sim.set_parameters({0: {'L1': -1.0}}, 0, 'p'), 'parameter_value'),
+    (lambda sim: sim.set_parameters({0: {'rho': 0.3}}, 0, 'p'), 'parameter_value'),
+    (lambda sim: sim.set_limits(0, ModuleLimits(0.6, 1.0), 0), 'parameter_value'),
+])
+def test_bad_input_is_refused_with_a_reason_and_changes_nothing(call, reason):
+    sim = fig8a_simulator()
+    modules, state, revision = sim.modules, sim.state, sim.revision
+    outcome = call(sim)
+    assert outcome.status == 'refused' and outcome.reason == reason and outcome.message
+    assert sim.modules is modules and sim.state is state and sim.revision == revision
+
+
+def test_parameter_change_is_tracked_and_forces_too():
+    sim = fig8a_simulator()
+    start, eq0 = sim.module(0)
+    assert sim.set_parameters({0: {'L2': 1.05, 'kc': 80.0}}, 0, 'design').status == 'ok'
+    end = start.with_(L2=1.05, kc=80.0)
+    expected = track_module(start, end, eq0.theta)
+    assert sim.modules[0] == end
+    np.testing.assert_allclose(sim.module(0)[1].theta, expected.final.theta, atol=0)
+    assert sim.set_force(0, 'a3', (1.0, -3.0), 0).status == 'ok'
+    assert (sim.modules[0].f3x, sim.modules[0].f3y) == (1.0, -3.0)
+
+
+def test_limits_apply_to_later_commands_and_refuse_a_stranded_actuator():
+    sim = fig8a_simulator()
+    assert sim.set_limits(0, ModuleLimits(0.2, 0.6), 0).status == 'ok'
+    assert sim.command_rho(0, 0.7, 0).reason == 'out_of_range'
+    assert 'the actuator is at rho=0.5' in sim.limits_refusal(0, 0.6, 0.9)
+
+
+def test_reset_returns_to_the_start_and_clears_the_record():
+    sim = fig8a_simulator(max_rho_rate=10.0)
+    sim.command_rho(0, 0.1, 0)
+    sim.advance(S)                                    # jumps at C1 on the way
+    assert sim.jumps_total == 1
+    sim.command_rho(0, 0.9, S)                        # pending motion
+    assert sim.reset([fig8a()], [LOWER]).status == 'ok'
+    params, eq = sim.module(0)
+    assert params == fig8a() and np.all(eq.theta < 0)
+    assert sim.jumps_total == 0 and sim.target(0) is None
+    assert sim.status(0).last_jump is None and sim.status(0).tracking == 'ok'
+
+
+def test_a_reset_without_a_stable_equilibrium_keeps_the_state(monkeypatch):
+    sim = fig8a_simulator()
+    state = sim.state
+    monkeypatch.setattr(mechanisms, 'settle', _raises_tracking_error)
+    outcome = sim.reset([fig8a(0.3)], [LOWER])
+    assert outcome.status == 'refused' and 'injected' in outcome.message
+    assert sim.state is state
+
+
+def test_tracking_failure_keeps_the_verified_state_and_clears_on_success(monkeypatch):
+    sim = fig8a_simulator()
+    state = sim.state
+    monkeypatch.setattr(mechanisms, 'track_module', _raises_tracking_error)
+    outcome = sim.command_rho(0, 0.3, 0)
+    [failure] = outcome.of_type(TrackingFailure)
+    assert outcome.status == 'failed' and failure.text == 'rho_cmd: injected'
+    assert sim.state is state and sim.modules[0].rho == 0.5
+    status = sim.status(0)
+    assert status.level == 'warn' and 'tracking stopped early' in status.message
+    monkeypatch.undo()
+    assert sim.command_rho(0, 0.3, 0).status == 'ok' and sim.status(0).tracking == 'ok'
+
+
+def test_an_unverified_tracker_result_is_never_taken(monkeypatch):
+    real = mechanisms.track_module
+
+    def saddle(start, end, theta):
+        track = real(start, end, theta)
+        final = track.final
+        import dataclasses
+        ev = np.array([-1.0, final.eigenvalues[-1]])
+        return dataclasses.replace(track, final=dataclasses.replace(final, eigenvalues=ev))
+
+    sim = fig8a_simulator()
+    state = sim.state
+    monkeypatch.setattr(mechanisms, 'track_module', saddle)
+    outcome = sim.command_rho(0, 0.3, 0)
+    assert outcome.status == 'failed' and 'unstable state' in outcome.events[0].text
+    assert sim.state is state
+
+
+def test_a_programming_error_in_the_tracker_propagates(monkeypatch):
+    monkeypatch.setattr(mechanisms, 'track_module', _raises_runtime_error)
+    sim = fig8a_simulator()
+    with pytest.raises(RuntimeError):
+        sim.command_rho(0, 0.3, 0)
+
+
+# ---------------------------------------------------------------------------
+# a neck: the same calls
+
+
+NECK = (ModuleParams(rho=0.09, L1=0.12, L2=0.12, ka=50.0, kb=50.0, kc=50.0),
+        ModuleParams(rho=0.085, L1=0.12, L2=0.12, ka=50.0, kb=50.0, kc=50.0))
+UPRIGHT = [[1.2, 1.2], [1.2, 1.2]]
+
+
+def neck_simulator(**limits):
+    lim = ModuleLimits(0.01, 0.2, **limits)
+    return Simulator(NECK, UPRIGHT, [lim, lim], names=['base', 'top'])
+
+
+def test_a_neck_command_is_the_stack_trackers_path():
+    sim = neck_simulator()
+    start = settle_stack(Stack(NECK), UPRIGHT)
+    np.testing.assert_allclose(sim.state.theta, start.theta, atol=0)
+    outcome = sim.command_rhos({0: 0.1, 1: 0.08}, 0)
+    end = Stack((NECK[0].with_(rho=0.1), NECK[1].with_(rho=0.08)))
+    expected = track_stack(Stack(NECK), end, start)
+    assert outcome.status == expected.status == 'ok'
+    np.testing.assert_allclose(sim.state.theta, expected.final.theta, atol=0)
+    params, view = sim.module(1)
+    assert params == end.modules[1] and view.theta1 == expected.final.theta[1][0]
+    assert view.actuator_force == expected.final.actuator_forces[1]
+    assert sim.status(1).num_equilibria is None          # exact counts: one module only
+
+
+def test_neck_targets_are_refused_as_a_whole():
+    sim = neck_simulator()
+    modules, state = sim.modules, sim.state
+    assert sim.command_rhos({0: 0.1, 1: 0.001}, 0).reason == 'out_of_range'
+    assert sim.modules is modules and sim.state is state
+
+
+def test_a_neck_jump_is_recorded_in_every_module():
+    """config/neck.yaml with a heavy head: shortening the middle module buckles it."""
+    base = ModuleParams(rho=0.09, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0,
+                        m1=0.02, m2=0.02)
+    modules = (base, base.with_(rho=0.085), base.with_(rho=0.08, f3y=-3.5, f4y=-3.5))
+    guess = [[0.754, 0.754], [0.813, 0.813], [0.85, 0.85]]
+    sim = Simulator(modules, guess)
+    start = settle_stack(Stack(modules), guess)
+    expected = track_stack(Stack(modules), Stack(modules).with_module(1, rho=0.07), start)
+    assert [j.kind for j in expected.jumps] == ['branch_point']
+    [jump] = sim.command_rho(1, 0.07, 0).of_type(Jump)
+    want = expected.jumps[0]
+    assert (jump.kind, jump.module, jump.count) == ('branch_point', 1, 1)
+    assert jump.modules == want.stack.modules
+    np.testing.assert_allclose(jump.to_theta, want.to_theta, atol=0)
+    for i in range(3):
+        status = sim.status(i)
+        assert status.jumps_total == 1 and status.last_jump.params == want.stack.modules[i]
+    np.testing.assert_allclose(sim.state.theta, expected.final.theta, atol=0)
+
+
+def test_a_neck_speed_limit_moves_one_module_at_its_rate():
+    sim = neck_simulator(max_rho_rate=0.01)
+    sim.command_rhos({0: 0.1, 1: 0.082}, 0)
+    sim.advance(S // 2)                             # at most 5 mm each
+    assert sim.modules[0].rho == pytest.approx(0.095) and sim.modules[1].rho == 0.082
+    assert sim.target(0) == 0.1 and sim.target(1) is None
+    sim.advance(2 * S)
+    assert [m.rho for m in sim.modules] == [0.1, 0.082] and verified_minimum(sim)
+
+
+def test_a_neck_failure_names_the_module_that_stopped(monkeypatch):
+    real = mechanisms.track_stack
+
+    def stops_halfway(start, end, state):
+        import dataclasses
+        track = real(start, Stack(tuple(a.with_(rho=0.5 * (a.rho + b.rho))
+                                        for a, b in zip(start.modules, end.modules))), state)
+        return dataclasses.replace(track, status='failed', message='injected stop')
+
+    sim = neck_simulator()
+    monkeypatch.setattr(mechanisms, 'track_stack', stops_halfway)
+    outcome = sim.command_rho(1, 0.075, 0)
+    [failure] = outcome.of_type(TrackingFailure)
+    assert failure.module == 1 and failure.text.startswith('rho_cmd: stopped at top rho=0.08')
+    assert sim.modules[1].rho == pytest.approx(0.08) and verified_minimum(sim)
+    assert sim.status(1).level == 'warn' and sim.status(0).tracking == 'ok'
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 1), st.one_of(
+    st.floats(0.0, 0.25), st.sampled_from([math.nan, math.inf]))), min_size=1, max_size=5))
+def test_any_command_sequence_leaves_a_verified_minimum(commands):
+    sim = neck_simulator()
+    for i, rho in commands:
+        before = sim.state
+        outcome = sim.command_rho(i, rho, 0)
+        if not (math.isfinite(rho) and 0.01 <= rho <= 0.2):
+            assert outcome.status == 'refused' and sim.state is before
+        assert verified_minimum(sim) and sim.state.residual < 1e-6
+
+
+def _raises_tracking_error(*args, **kwargs):
+    raise TrackingError('injected')
+
+
+def _raises_runtime_error(*args, **kwargs):
+    raise RuntimeError('a bug')

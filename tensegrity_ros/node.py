@@ -85,6 +85,10 @@ MARKERS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 DEFAULT_NODE_NAME = 'tensegrity'
+#: Start-up check for another node of the same name: every this many seconds, this many
+#: times (discovery on loopback takes well under a second).
+NAME_CHECK_PERIOD_SEC = 0.5
+NAME_CHECKS = 6
 #: Rejected input and failures are logged at most once per this many seconds per reason.
 WARN_THROTTLE_SEC = 2.0
 
@@ -146,6 +150,9 @@ class TensegrityNode(Node):
         self._rho_joints = {f'{m}_rho': i for i, m in enumerate(self._names)}
         self._js = conv.JointStateBuffer(self._names)
         self._create_interfaces()
+        self._name_checks = NAME_CHECKS
+        self._name_timer = self.create_timer(NAME_CHECK_PERIOD_SEC,
+                                             self._guard(self._check_name_unique, 'name check'))
         self._publish_everything()
         for i, m in enumerate(self._names):
             params, eq = self._sim.module(i)
@@ -205,6 +212,22 @@ class TensegrityNode(Node):
         self.add_pre_set_parameters_callback(self._pre_set_parameters)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
+
+    def _check_name_unique(self):
+        """Start-up: WARN once if another node in the graph has this fully qualified name
+        (two nodes with one name share topics, services and parameters unnoticed).  Runs a
+        few times while discovery settles, then stops."""
+        me = (self.get_name(), self.get_namespace())
+        same = sum(1 for entry in self.get_node_names_and_namespaces() if entry == me)
+        self._name_checks -= 1
+        if same > 1:
+            self.get_logger().warning(
+                f'another node named {self.get_fully_qualified_name()} is already running '
+                f'({same} in the graph): topics, services and parameters are shared; start '
+                f'this one under another name or namespace (-r __node:=... / __ns:=...)')
+        if same > 1 or self._name_checks <= 0:
+            self._name_timer.cancel()
+            self.destroy_timer(self._name_timer)
 
     # -- start-up: parameters -> simulator ---------------------------------------------
 

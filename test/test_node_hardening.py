@@ -6,8 +6,10 @@ is built from.  In-process nodes use the Harness of test_node.py (spun until a c
 no sleeps); processes are started the way ``make run`` starts the node.
 """
 import os
+import signal
 import subprocess
 import sys
+import threading
 
 import pytest
 from geometry_msgs.msg import Vector3
@@ -182,3 +184,36 @@ def test_repeated_jumps_are_all_published_but_logged_throttled(harness):
     lines = h.warnings(': jump (')
     assert len(lines) <= 1 + elapsed / 2.0, (elapsed, lines)
     assert len(lines) < expected_jumps
+
+
+# ---------------------------------------------------------------------------
+# Two nodes with one fully qualified name: the second one says so at start-up
+
+
+def test_second_node_with_the_same_name_warns_at_start_up(harness):
+    h = harness().ready()
+    env = dict(os.environ, PYTHONUNBUFFERED='1')
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'tensegrity_ros.node', '--ros-args', '-r', f'__ns:={h.ns}'],
+        cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    lines = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stderr), daemon=True)
+    reader.start()
+    try:
+        h.spin_until(lambda: any('already running' in line for line in lines) or
+                     proc.poll() is not None, what='the duplicate-name warning')
+        warning = next(line for line in lines if 'already running' in line)
+        assert 'WARN' in warning and f'{h.ns}/tensegrity' in warning
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=TIMEOUT)
+        reader.join(timeout=TIMEOUT)
+    assert proc.returncode == 0
+
+
+def test_a_node_alone_does_not_warn_about_its_name(harness):
+    h = harness().ready()
+    h.spin_until(lambda: h.counter('commands_processed') is not None, what='/diagnostics')
+    n = len(h.diagnostics)
+    h.spin_until(lambda: len(h.diagnostics) > n + 60, what='3 s of /diagnostics at 20 Hz')
+    assert not h.warnings('already running')

@@ -51,6 +51,7 @@ from tensegrity_ros import node_parameters as params
 from tensegrity_ros import ros_conversions as conv
 from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.params_file import ConfigError, check_parameter_file
+from tensegrity_ros.core.command_coalescing import LatestCommands, force_key, target_key
 from tensegrity_ros.core.events import Jump, JumpAhead, TrackingFailure
 from tensegrity_ros.core.simulator import Simulator
 from tensegrity_ros.core.stack import Stack
@@ -59,8 +60,8 @@ from tensegrity_ros.core.stack import Stack
 # QoS (documented in msg_docs/ and README.md)
 
 #: Commands: reliable + volatile, so ``ros2 topic pub`` (and any default publisher)
-#: matches.  Depth 100 = 0.1 s of a 1 kHz stream: every command is a path segment
-#: and is processed in order, none is dropped while the node keeps up.
+#: matches.  Depth 100: each callback also reads what waits in its queue (coalescing
+#: superseded targets), so the queue does not overflow while a slow command is tracked.
 COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
@@ -132,7 +133,8 @@ class TensegrityNode(Node):
     def _setup(self):
         self._node_clock = self.get_clock()
         self._counters = {f'rejected_{r}': 0 for r in REJECT_REASONS}
-        self._counters.update(commands_processed=0, callback_exceptions=0, jump_warnings=0,
+        self._counters.update(commands_processed=0, commands_coalesced=0,
+                              callback_exceptions=0, jump_warnings=0,
                               tracking_failures=0, jumps_total=0)
         self._level_events = set()          # what happened since the last /diagnostics
         self._loggers = {}
@@ -173,10 +175,13 @@ class TensegrityNode(Node):
                 msg_type, topic, qos,
                 event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
 
-        def subscription(msg_type, topic, callback):
-            return self.create_subscription(
-                msg_type, topic, self._guard(callback, topic), COMMAND_QOS,
-                event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
+        def subscription(msg_type, topic, read):
+            made = []                   # the callback drains its own subscription
+            made.append(self.create_subscription(
+                msg_type, topic,
+                self._guard(lambda msg: self._on_commands(made[0], read, msg), topic),
+                COMMAND_QOS,
+                event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False)))
 
         self._js_pub = publisher(JointState, 'joint_states', STATE_QOS)
         self._stable_pub = publisher(Bool, 'stable', STATUS_QOS)
@@ -192,10 +197,10 @@ class TensegrityNode(Node):
         self._head_pub = publisher(PoseStamped, 'head_pose', HEAD_QOS)
 
         for i, m in enumerate(self._names):
-            subscription(Float64, f'{m}/rho_cmd', self._make_rho_callback(i))
+            subscription(Float64, f'{m}/rho_cmd', self._read_rho(i))
             for node in ('a3', 'a4'):
-                subscription(Vector3, f'{m}/force_{node}', self._make_force_callback(i, node))
-        subscription(JointState, 'joint_commands', self._on_joint_commands)
+                subscription(Vector3, f'{m}/force_{node}', self._read_force(i, node))
+        subscription(JointState, 'joint_commands', self._read_joint_commands)
         self.create_service(Trigger, 'reset', self._on_reset)
 
         # One timer serves joint_states, speed-limited motion, markers and /diagnostics
@@ -461,24 +466,62 @@ class TensegrityNode(Node):
             throttle_duration_sec=WARN_THROTTLE_SEC)
 
     # -- messages -> simulator calls ------------------------------------------------------
+    #
+    # A command message is first *read* (checked: bad input is rejected and counted), then
+    # *applied* (tracked).  Every callback reads all the commands waiting in its
+    # subscription's queue at once, so that a slow command (a fold) never lets the queue
+    # overflow; of those, only the latest target of a module is applied, the others are
+    # coalesced and counted (core.command_coalescing).
 
-    def _make_rho_callback(self, index):
+    def _on_commands(self, subscription, read, first):
+        """Callback of a command subscription: ``first`` and every message waiting behind
+        it are read with ``read`` (-> (key, apply) or None if rejected); the latest of
+        each key is applied."""
+        waiting = LatestCommands()
+        for msg in self._waiting_messages(subscription, first):
+            command = read(msg)
+            if command is not None:
+                waiting.offer(*command)
+        self._counters['commands_coalesced'] += waiting.coalesced
+        for apply in waiting.take():
+            apply()
+
+    @staticmethod
+    def _waiting_messages(subscription, first):
+        """``first``, then the messages already waiting in the subscription's queue (at
+        most its depth: newer ones are left for the next callback)."""
+        yield first
+        for _ in range(COMMAND_QOS.depth):
+            with subscription.handle:
+                taken = subscription.handle.take_message(subscription.msg_type,
+                                                         subscription.raw)
+            if taken is None:
+                return
+            yield taken[0]
+
+    def _read_rho(self, index):
         topic = f'{self._names[index]}/rho_cmd'
 
-        def on_rho_cmd(msg):
-            now = self._now_ns()
-            self._command(self._sim.command_rho(index, msg.data, now), topic, now)
-        return on_rho_cmd
+        def read(msg):
+            targets = {index: msg.data}
+            refusal = self._sim.rhos_refusal(targets)
+            if refusal is not None:
+                return self._reject(refusal.reason, f'{topic}: {refusal.message}')
+            return target_key(targets), lambda: self._apply_targets(targets, topic, 'rho_cmd')
+        return read
 
-    def _make_force_callback(self, index, node):
+    def _read_force(self, index, node):
         topic = f'{self._names[index]}/force_{node}'
 
-        def on_force(msg):              # z is ignored (planar mechanism)
-            now = self._now_ns()
-            self._command(self._sim.set_force(index, node, (msg.x, msg.y), now), topic, now)
-        return on_force
+        def read(msg):                  # z is ignored (planar mechanism)
+            force = (msg.x, msg.y)
+            refusal = self._sim.force_refusal(index, node, force)
+            if refusal is not None:
+                return self._reject(refusal.reason, f'{topic}: {refusal.message}')
+            return force_key(index, node), lambda: self._apply_force(index, node, force, topic)
+        return read
 
-    def _on_joint_commands(self, msg):
+    def _read_joint_commands(self, msg):
         names, positions = msg.name, msg.position
         if not names:
             return self._reject('size_mismatch', 'joint_commands: no joint names')
@@ -494,8 +537,19 @@ class TensegrityNode(Node):
             if index in targets:
                 return self._reject('duplicate_joint', f'joint_commands: {shown(name)} given twice')
             targets[index] = value
+        refusal = self._sim.rhos_refusal(targets)
+        if refusal is not None:
+            return self._reject(refusal.reason, f'joint_commands: {refusal.message}')
+        return target_key(targets), lambda: self._apply_targets(
+            targets, 'joint_commands', 'joint_commands')
+
+    def _apply_targets(self, targets, source, cause):
         now = self._now_ns()
-        self._command(self._sim.command_rhos(targets, now), 'joint_commands', now)
+        self._command(self._sim.command_rhos(targets, now, cause), source, now)
+
+    def _apply_force(self, index, node, force, source):
+        now = self._now_ns()
+        self._command(self._sim.set_force(index, node, force, now), source, now)
 
     def _command(self, outcome, source, now_ns, count=1):
         """Report a command's outcome: a refusal is counted and dropped; otherwise its

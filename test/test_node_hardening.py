@@ -10,16 +10,17 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 
 import pytest
 from geometry_msgs.msg import Vector3
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 
-from tensegrity_ros.core import ModuleParams, settle, track_module
+from tensegrity_ros.core import ModuleParams, equilibria, settle, track_module
 
 from test_node import harness, ros  # noqa: F401  (fixtures)
-from test_node import ROOT, TIMEOUT
+from test_node import ROOT, STREAM_QOS, TIMEOUT
 
 pytestmark = pytest.mark.ros
 
@@ -217,3 +218,52 @@ def test_a_node_alone_does_not_warn_about_its_name(harness):
     n = len(h.diagnostics)
     h.spin_until(lambda: len(h.diagnostics) > n + 60, what='3 s of /diagnostics at 20 Hz')
     assert not h.warnings('already running')
+
+
+# ---------------------------------------------------------------------------
+# Load: a burst of commands each crossing a fold; none is lost without a trace
+
+
+def _unique_state(f4y):
+    """The only stable equilibrium of the unloaded default module with force_a4 (0, f4y)
+    (so the end state does not depend on which commands of a burst were tracked)."""
+    found = [e for e in equilibria(ModuleParams.paper(0.75).with_(f4y=f4y)) if e.stable]
+    assert len(found) == 1
+    return found[0]
+
+
+def test_burst_of_fold_crossing_commands_is_processed_or_counted(harness):
+    """300 force_a4 messages at 1 kHz, each flipping the module through a fold (~15 ms of
+    tracking each): every one is processed, coalesced or rejected, and counted."""
+    count = 300
+    forces = [60.0 if i % 2 else -60.0 for i in range(count)]       # ends on +60
+    end = _unique_state(forces[-1])
+    h = harness().ready()
+    pub = h.client.create_publisher(Vector3, 'm0/force_a4', STREAM_QOS)
+    h.spin_until(lambda: pub.get_subscription_count() > 0 and
+                 h.counter('commands_processed') is not None, what='discovery')
+
+    def send():
+        start = time.monotonic()
+        for i, f in enumerate(forces):
+            delay = start + i * 1e-3 - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)       # paces the stream (1 kHz); not a synchronisation
+            pub.publish(Vector3(x=0.0, y=f, z=0.0))
+
+    sender = threading.Thread(target=send)
+    sender.start()
+
+    def accounted():
+        return (h.counter('commands_processed') + h.counter('commands_coalesced')
+                + h.counter('rejected_total'))
+    try:
+        h.spin_until(lambda: not sender.is_alive() and accounted() >= count,
+                     what='every command processed or counted')
+    finally:
+        sender.join()
+    assert accounted() == count
+    assert h.counter('rejected_total') == 0
+    assert h.counter('commands_processed') >= 1 and h.jumps
+    h.spin_until(lambda: abs(h.state()[1] - end.theta1) < 1e-9, what='the last force tracked')
+    assert h.state()[2] == pytest.approx(end.theta2, abs=1e-9)

@@ -60,9 +60,10 @@ from tensegrity_ros.core.stack import Stack
 # QoS (documented in msg_docs/ and README.md)
 
 #: Commands: reliable + volatile, so ``ros2 topic pub`` (and any default publisher)
-#: matches.  Depth 100: each callback also reads what waits in its queue (coalescing
-#: superseded targets), so the queue does not overflow while a slow command is tracked.
-COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+#: matches.  Depth 1000 = 0.2 s of a 5 kHz stream, the longest a command crossing a fold
+#: keeps the node busy on a loaded machine; each callback then reads everything waiting
+#: (coalescing superseded targets), so the queue does not overflow.
+COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
 #: Latched status (``stable``, ``equilibrium``): a late subscriber gets the current one.

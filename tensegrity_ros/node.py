@@ -42,6 +42,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64
 from std_srvs.srv import Trigger
@@ -49,6 +50,7 @@ from visualization_msgs.msg import MarkerArray
 
 from tensegrity_ros import node_parameters as params
 from tensegrity_ros import ros_conversions as conv
+from tensegrity_ros.joint_state_names import exact_names
 from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.params_file import ConfigError, check_parameter_file
 from tensegrity_ros.core.command_coalescing import LatestCommands, force_key, target_key
@@ -176,12 +178,12 @@ class TensegrityNode(Node):
                 msg_type, topic, qos,
                 event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
 
-        def subscription(msg_type, topic, read):
+        def subscription(msg_type, topic, read, raw=False):
             made = []                   # the callback drains its own subscription
             made.append(self.create_subscription(
                 msg_type, topic,
                 self._guard(lambda msg: self._on_commands(made[0], read, msg), topic),
-                COMMAND_QOS,
+                COMMAND_QOS, raw=raw,
                 event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False)))
 
         self._js_pub = publisher(JointState, 'joint_states', STATE_QOS)
@@ -201,7 +203,8 @@ class TensegrityNode(Node):
             subscription(Float64, f'{m}/rho_cmd', self._read_rho(i))
             for node in ('a3', 'a4'):
                 subscription(Vector3, f'{m}/force_{node}', self._read_force(i, node))
-        subscription(JointState, 'joint_commands', self._read_joint_commands)
+        # serialized: joint names are read exactly (rclpy would cut them at a NUL)
+        subscription(JointState, 'joint_commands', self._read_joint_commands, raw=True)
         self.create_service(Trigger, 'reset', self._on_reset)
 
         # One timer serves joint_states, speed-limited motion, markers and /diagnostics
@@ -522,8 +525,9 @@ class TensegrityNode(Node):
             return force_key(index, node), lambda: self._apply_force(index, node, force, topic)
         return read
 
-    def _read_joint_commands(self, msg):
-        names, positions = msg.name, msg.position
+    def _read_joint_commands(self, raw):
+        msg = deserialize_message(raw, JointState)
+        names, positions = exact_names(raw) or msg.name, msg.position
         if not names:
             return self._reject('size_mismatch', 'joint_commands: no joint names')
         if len(names) != len(positions):

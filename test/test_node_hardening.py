@@ -15,6 +15,7 @@ import time
 import pytest
 from geometry_msgs.msg import Vector3
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
 from tensegrity_ros.core import ModuleParams, equilibria, settle, track_module
@@ -267,3 +268,33 @@ def test_burst_of_fold_crossing_commands_is_processed_or_counted(harness):
     assert h.counter('commands_processed') >= 1 and h.jumps
     h.spin_until(lambda: abs(h.state()[1] - end.theta1) < 1e-9, what='the last force tracked')
     assert h.state()[2] == pytest.approx(end.theta2, abs=1e-9)
+
+
+# ---------------------------------------------------------------------------
+# Joint names are compared exactly
+
+
+def _serialized_joint_commands(name_bytes, position):
+    """A serialized JointState whose one name is ``name_bytes`` exactly (rclpy itself
+    cannot publish a NUL inside a string; a C++ publisher can)."""
+    placeholder = 'Z' * len(name_bytes)
+    raw = serialize_message(JointState(name=[placeholder], position=[position]))
+    at = raw.index(placeholder.encode())
+    return raw[:at] + name_bytes + raw[at + len(name_bytes):]
+
+
+@pytest.mark.parametrize('name', [b'm0_rho\x00', b'm0_rho\x00m1', b'\x00m0_rho'])
+def test_joint_name_with_a_nul_is_not_m0_rho(harness, name):
+    h = harness().ready()
+    raw = _serialized_joint_commands(name, 0.6)
+    assert deserialize_message(raw, JointState).name[0] in ('m0_rho', '')
+    h.rejected('rejected_unknown_joint', lambda: h.jc_pub.publish(raw))
+    assert h.state()[0] == 0.75
+    line = h.warnings('rejected_unknown_joint')[-1]
+    assert '\\x00' in line
+
+
+def test_serialized_exact_name_is_still_applied(harness):
+    h = harness().ready()
+    h.jc_pub.publish(_serialized_joint_commands(b'm0_rho', 0.6))
+    h.spin_until(lambda: h.joint_states[-1].position[0] == 0.6, what='rho 0.6')

@@ -37,34 +37,14 @@ import sys
 
 import numpy as np
 
-from .core import InvalidParameterError, ModuleParams, equilibria
+from .core import InvalidParameterError, ModuleParams, equilibria, track_module
+from .core.start_state import start_state, upright_guess
+from .problem import (APPLY_ORDER, DEFAULT_FIELDS, PARAMETERS, describe, describe_modules,
+                      resolve_fields)
 
-#: Parameters a user can set, by CLI name: (ModuleParams fields it sets, help).
-#: Group names (k, F) set several fields; the specific names override them.
-PARAMETERS = {
-    'rho': (('rho',), 'actuated base length A1A2 (m)'),
-    'L1': (('L1',), 'length of rod A1A3 (m, default 1)'),
-    'L2': (('L2',), 'length of rod A2A4 (m, default 1)'),
-    'k': (('ka', 'kb', 'kc'), 'stiffness of all three springs (N/m, default 100)'),
-    'ka': (('ka',), 'stiffness of spring A2A3 (N/m; overrides --k)'),
-    'kb': (('kb',), 'stiffness of spring A1A4 (N/m; overrides --k)'),
-    'kc': (('kc',), 'stiffness of spring A3A4 (N/m; overrides --k)'),
-    'F': (('f3y', 'f4y'), 'vertical force at A3 and at A4 (N, F3 = F4 = F; + pulls up)'),
-    'F3': (('f3y',), 'vertical force at A3 (N, + pulls up, - pushes down; overrides --F)'),
-    'F4': (('f4y',), 'vertical force at A4 (N, + pulls up, - pushes down; overrides --F)'),
-    'F3x': (('f3x',), 'horizontal force at A3 (N, + along A1->A2)'),
-    'F4x': (('f4x',), 'horizontal force at A4 (N, + along A1->A2)'),
-    'm1': (('m1',), 'mass of rod A1A3 (kg, weight acts along -y)'),
-    'm2': (('m2',), 'mass of rod A2A4 (kg, weight acts along -y)'),
-}
-#: Group names are applied first so that specific names override them.
-_ORDER = ('rho', 'L1', 'L2', 'k', 'F', 'ka', 'kb', 'kc', 'F3', 'F4', 'F3x', 'F4x', 'm1', 'm2')
 #: Names whose value must be > 0, resp. >= 0.
 _POSITIVE = {'rho', 'L1', 'L2', 'k', 'ka', 'kb', 'kc'}
 _NON_NEGATIVE = {'m1', 'm2'}
-#: Default values of the fields (the paper's normalisation L1 = 1, k = 100).
-DEFAULT_FIELDS = dict(L1=1.0, L2=1.0, ka=100.0, kb=100.0, kc=100.0,
-                      f3x=0.0, f3y=0.0, f4x=0.0, f4y=0.0, m1=0.0, m2=0.0)
 #: Names that overlap: giving both as a map axis and a fixed value is refused.
 _OVERLAPS = {'k': {'k', 'ka', 'kb', 'kc'}, 'F': {'F', 'F3', 'F4'}}
 
@@ -100,57 +80,11 @@ def check_domain(name, value):
         raise UsageError(f'{name} must be non-negative, got {value:g}')
 
 
-def resolve_fields(values):
-    """ModuleParams keyword arguments from CLI-named values (scalars or arrays).
-
-    Defaults are the paper's (L1 = L2 = 1, k = 100, no load); group names (k, F)
-    are applied before the specific ones so that ``--ka`` overrides ``--k``.
-    """
-    fields = dict(DEFAULT_FIELDS)
-    for name in _ORDER:
-        if name in values and values[name] is not None:
-            for field in PARAMETERS[name][0]:
-                fields[field] = values[name]
-    return fields
-
-
 def make_params(values):
     """A validated ModuleParams from CLI-named values (needs 'rho')."""
     if values.get('rho') is None:
         raise UsageError('--rho is required')
     return ModuleParams(**resolve_fields(values))
-
-
-def describe(values, skip=()):
-    """Compact text of the parameters, e.g. 'L1=1 L2=1 k=100 F3=F4=5' (for titles)."""
-    f = resolve_fields(values)
-    skip_fields = set()
-    for name in skip:
-        skip_fields.update(PARAMETERS[name][0])
-    parts = []
-
-    def num(v):
-        return f'{v:g}'
-
-    for field, label in (('rho', 'rho'), ('L1', 'L1'), ('L2', 'L2')):
-        if field in f and field not in skip_fields and f.get(field) is not None:
-            parts.append(f'{label}={num(f[field])}')
-    springs = [(s, f[s]) for s in ('ka', 'kb', 'kc') if s not in skip_fields]
-    if springs:
-        if len(springs) == 3 and len({v for _, v in springs}) == 1:
-            parts.append(f'k={num(springs[0][1])}')
-        else:
-            parts.extend(f'{s}={num(v)}' for s, v in springs)
-    vertical = [(lab, f[fld]) for fld, lab in (('f3y', 'F3'), ('f4y', 'F4'))
-                if fld not in skip_fields]
-    if len(vertical) == 2 and vertical[0][1] == vertical[1][1]:
-        parts.append(f'F3=F4={num(vertical[0][1])}')
-    else:
-        parts.extend(f'{lab}={num(v)}' for lab, v in vertical)
-    for fld, lab in (('f3x', 'F3x'), ('f4x', 'F4x'), ('m1', 'm1'), ('m2', 'm2')):
-        if fld not in skip_fields and f[fld] != 0.0:
-            parts.append(f'{lab}={num(f[fld])}')
-    return ' '.join(parts)
 
 
 # ---------------------------------------------------------------------------
@@ -441,45 +375,19 @@ def _start_guess(args):
 
 
 def start_equilibrium(p, guess):
-    """The stable equilibrium the mechanism starts in.
-
-    With a guess: the one whose basin holds it (``settle``).  Without: the stable
-    equilibrium with the largest y3 + y4 (the upper one, as in the paper's figures).
-    """
-    if guess is not None:
-        from .core.tracking import settle
-        try:
-            return settle(p, guess)
-        except (ValueError, RuntimeError) as exc:
-            raise UsageError(f'cannot settle from the start guess: {exc}') from None
-    stable = equilibria(p).stable
-    if not stable:
-        raise UsageError(f'no stable equilibrium at the start ({describe_params(p)}): '
-                         'the point is degenerate; move it slightly')
-    return max(stable, key=lambda e: p.L1 * math.sin(e.theta1) + p.L2 * math.sin(e.theta2))
-
-
-def describe_params(p):
-    return describe({'rho': p.rho, 'L1': p.L1, 'L2': p.L2, 'ka': p.ka, 'kb': p.kb,
-                     'kc': p.kc, 'F3': p.f3y, 'F4': p.f4y, 'F3x': p.f3x, 'F4x': p.f4x,
-                     'm1': p.m1, 'm2': p.m2})
-
-
-def _tracker():
+    """The stable equilibrium one module starts in (:func:`start_state`: the one whose
+    basin holds ``guess``, or the upper one); UsageError if there is none."""
     try:
-        from .core import track_module, settle  # noqa: F401
-    except ImportError:
-        try:
-            from .core.tracking import track_module, settle  # noqa: F401
-        except ImportError:
-            raise RuntimeError('the tracker (tensegrity_ros.core.track_module) is not '
-                               'available in this build') from None
-    return track_module
+        return start_state([p], None if guess is None else [guess])
+    except (ValueError, RuntimeError) as exc:
+        if guess is None:
+            raise UsageError(f'no stable equilibrium at the start ({describe_modules([p])}): '
+                             'the point is degenerate; move it slightly') from None
+        raise UsageError(f'cannot settle from the start guess: {exc}') from None
 
 
 def run_track(start, end, guess):
     """(start Equilibrium, ModuleTrack) for one straight path."""
-    track_module = _tracker()
     first = start_equilibrium(start, guess)
     return first, track_module(start, end, first.theta)
 
@@ -518,7 +426,7 @@ def cmd_track(args, out):
         out.write(json.dumps(doc, indent=2) + '\n')
         return code
     deg = math.degrees
-    out.write(f'path: {describe_params(start)}  ->  {describe_params(end)}\n')
+    out.write(f'path: {describe_modules([start])}  ->  {describe_modules([end])}\n')
     out.write(f'start: theta = ({deg(first.theta1):.3f}, {deg(first.theta2):.3f}) deg, '
               f'{first.kind}\n')
     if not track.jumps:
@@ -625,7 +533,7 @@ def _override(fields_list, values, rhos):
     out = []
     for i, fields in enumerate(fields_list):
         f = dict(fields)
-        for name in _ORDER:
+        for name in APPLY_ORDER:
             if name == 'rho' or values.get(name) is None:
                 continue
             if name in HEAD_OPTIONS and i != top:
@@ -658,32 +566,6 @@ def _make_stack(fields_list, names):
 def _check_input(path, option):
     if not os.path.isfile(path):
         raise UsageError(f'{option}: no such file {path!r}')
-
-
-def _module_values(p):
-    return {'rho': p.rho, 'L1': p.L1, 'L2': p.L2, 'ka': p.ka, 'kb': p.kb, 'kc': p.kc,
-            'F3': p.f3y, 'F4': p.f4y, 'F3x': p.f3x, 'F4x': p.f4x, 'm1': p.m1, 'm2': p.m2}
-
-
-def describe_stack(stack, names):
-    """One line: modules, rho of each, geometry (shared or per module), loads."""
-    n = len(stack.modules)
-    label = 'module' if n == 1 else 'modules'
-    parts = [f'{n} {label} {", ".join(names)}' + (' (bottom to top)' if n > 1 else '')]
-    parts.append('rho = ' + ', '.join(f'{m.rho:g}' for m in stack.modules) + ' m')
-    loads = ('rho', 'F3', 'F4', 'F3x', 'F4x')
-    geometry = [describe(_module_values(m), skip=loads) for m in stack.modules]
-    if len(set(geometry)) == 1:
-        parts.append(geometry[0])
-    else:
-        parts.append('; '.join(f'{name} {g}' for name, g in zip(names, geometry)))
-    loaded = []
-    for name, m in zip(names, stack.modules):
-        if any((m.f3x, m.f3y, m.f4x, m.f4y)):
-            text = describe(_module_values(m), skip=('rho', 'L1', 'L2', 'k', 'm1', 'm2'))
-            loaded.append(f'{name} {text}')
-    parts.append('loads: ' + ('; '.join(loaded) if loaded else 'none'))
-    return '; '.join(parts)
 
 
 def stack_equilibrium_record(e):
@@ -763,7 +645,7 @@ def cmd_stack_solve(args, out):
             doc.update(starts=starts, seed=seed)
         out.write(json.dumps(doc, indent=2) + '\n')
         return EXIT_OK
-    out.write(describe_stack(stack, spec.names) + '\n')
+    out.write(describe_modules(stack.modules, spec.names) + '\n')
     found = 'found' if method != 'exact' else ''
     head = (f'{how}: {len(records)} equilibria {found}'.rstrip()
             + f', {num_stable} stable ({seconds:.2f} s)')
@@ -792,26 +674,6 @@ def format_stack_table(records, names, stable_only=False):
     return '\n'.join(lines)
 
 
-def upright_guess(stack):
-    """The all-upright start guess (N x 2).
-
-    One module: the stable equilibrium with the largest y3 + y4 (as plain ``track``).
-    Several: every module symmetric, t1 = t2 = acos((rho_i + rho_i+1) / (L1 + L2)),
-    which makes its top chord as long as the next module's actuator (the top module
-    uses its own rho, the unloaded parallelogram); the stack settles from there.
-    """
-    modules = stack.modules
-    if len(modules) == 1:
-        return [list(start_equilibrium(modules[0], None).theta)]
-    guess = []
-    for i, m in enumerate(modules):
-        upper = modules[i + 1].rho if i + 1 < len(modules) else m.rho
-        c = (m.rho + upper) / (m.L1 + m.L2)
-        t = math.acos(min(max(c, -0.95), 0.95))
-        guess.append([t, t])
-    return guess
-
-
 def _stack_guess(args, spec, stack):
     if args.theta is not None:
         if args.theta1 is not None or args.theta2 is not None:
@@ -824,7 +686,9 @@ def _stack_guess(args, spec, stack):
         return [list(_start_guess(args))], 'given (--theta1/--theta2)'
     if spec.config is not None:
         return spec.config.initial_theta, f'initial_theta of {args.config}'
-    return upright_guess(stack), 'upright'
+    if len(spec) == 1:
+        return [list(start_equilibrium(stack.modules[0], None).theta)], 'upright'
+    return upright_guess(stack.modules), 'upright'
 
 
 def stack_jump_record(jump):
@@ -874,7 +738,7 @@ def cmd_stack_track(args, out):
     if args.json:
         out.write(json.dumps(doc, indent=2) + '\n')
         return code
-    out.write(f'path: {describe_stack(start, names)}\n  ->  {describe_stack(end, names)}\n')
+    out.write(f'path: {describe_modules(start.modules, names)}\n  ->  {describe_modules(end.modules, names)}\n')
     out.write(f'start ({source}): theta [deg] {_theta_text(first.theta, names)}; '
               f'{_head_text(first)}; margin {first.stability_margin:.4g} N/m\n')
     if not track.jumps:
@@ -1021,6 +885,7 @@ def cmd_diagram(args, out):
             raise UsageError('--track needs at least two rho values')
         for v in args.track:
             check_domain('rho', v)
+        guess = start_equilibrium(make_params(dict(fixed, rho=args.track[0])), guess).theta
     elif guess is not None:
         raise UsageError('--theta1/--theta2 are only used with --track')
     _check_output(args.png, '--png')

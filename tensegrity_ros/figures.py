@@ -26,8 +26,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .core import ModuleParams, equilibria, equilibria_batch
-from .cli import resolve_fields, describe
+from .core import ModuleParams, equilibria, equilibria_batch, track_module
+from .core.start_state import start_state
+from .problem import describe, resolve_fields
 
 #: Points per chunk of a map (measured: ~20k points minimise the cost per point).
 MAP_CHUNK = 20000
@@ -599,19 +600,18 @@ class TrackedPath:
 
 
 def track_path(fixed, rhos, guess, diagram=None):
-    """Follow the stable equilibrium through the rho values (``track_module`` per leg).
+    """Follow the stable equilibrium through the rho values (``track_module`` per leg),
+    from the start state :func:`start_state` settles ``guess`` into (None: the upper one).
 
     Jumps come from the tracker; between them the path is drawn through the
     stable equilibria nearest to the previous point (at most half the diagram's
     step apart in rho), which is the branch the tracker followed.
     """
-    from .cli import start_equilibrium, _tracker
-    track_module = _tracker()
     solve = _Solver(fixed)
     step = 0.0025
     if diagram is not None:
         step = 0.5 * (diagram.rho_max - diagram.rho_min) / max(diagram.samples, 2)
-    first = start_equilibrium(solve.params(rhos[0]), guess)
+    first = start_state([solve.params(rhos[0])], None if guess is None else [guess])
     theta = first.theta
     pieces, jumps, legs = [], [], []
     for r0, r1 in zip(rhos[:-1], rhos[1:]):

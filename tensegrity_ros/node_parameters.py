@@ -1,21 +1,29 @@
-"""The node's parameters: declarations (descriptors), and their values -> simulator configuration.
+"""The node's parameters as ROS declares them: descriptors, types, node-wide settings.
 
-``MODULE_PARAMETERS`` (per module, ``<m>.<name>``) and ``NODE_PARAMETERS`` are the
-parameter contract (DESIGN.md section 5, README's parameter table mirrors them).
-The functions below read parameter values (a ``{name: value}`` dict) into what the
-core simulator takes (:class:`ModuleParams`, :class:`ModuleLimits`, start angles)
-and say why a set of values is refused.
+The per-module parameters and the way from their values to the simulator's
+configuration are ROS-free, in :mod:`tensegrity_ros.module_parameters` (shared with the
+parameter files of the offline tools); their names are re-exported here so that the
+node reads all of its parameters through this module.  ``MODULE_PARAMETERS`` (per
+module, ``<m>.<name>``) and ``NODE_PARAMETERS`` are the parameter contract (DESIGN.md
+section 5; README's parameter table mirrors them).
 """
 from __future__ import annotations
-
-import math
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.parameter import Parameter
 
-from tensegrity_ros.core import InvalidParameterError, ModuleParams
-from tensegrity_ros.core.simulator import ModuleLimits
-from tensegrity_ros.log_text import shown
+from tensegrity_ros.module_parameters import (
+    FORCE, INITIAL, LIMIT, MODULE_PARAMETERS, PHYSICAL, SETTING, check_module_values,
+    design_changes, initial_params, kind_of, module_getter, module_limits, module_params)
+
+__all__ = [
+    'MAX_MODULES', 'DOUBLE', 'DOUBLE_ARRAY', 'STRING', 'STRING_ARRAY', 'NODE_PARAMETERS',
+    'descriptor', 'declarations', 'parameter_types', 'check_node_values',
+    # per-module parameters (module_parameters), for the node
+    'FORCE', 'INITIAL', 'LIMIT', 'MODULE_PARAMETERS', 'PHYSICAL', 'SETTING',
+    'check_module_values', 'design_changes', 'initial_params', 'kind_of', 'module_getter',
+    'module_limits', 'module_params',
+]
 
 #: How many modules one node hosts at most (a stack of N modules has 4N coupled unknowns;
 #: a command costs ~N^2 * 0.1 ms).
@@ -35,52 +43,8 @@ DOUBLE = Parameter.Type.DOUBLE
 DOUBLE_ARRAY = Parameter.Type.DOUBLE_ARRAY
 STRING = Parameter.Type.STRING
 STRING_ARRAY = Parameter.Type.STRING_ARRAY
-
-# Kinds of per-module parameters: what a runtime change does.
-PHYSICAL = 'physical'    # geometry, stiffness, masses: tracked like a command
-FORCE = 'force'          # force_a3/a4: tracked like a force command
-INITIAL = 'initial'      # used at start-up and by reset
-LIMIT = 'limit'          # rho_min/rho_max: command validation
-SETTING = 'setting'      # rates and thresholds
-
-#: Per-module parameters ``<m>.<name>``: (name, default, type, kind, description, constraints,
-#: FloatingPointRange or None).  The README parameter table mirrors this.
-MODULE_PARAMETERS = (
-    ('L1', 1.0, DOUBLE, PHYSICAL, 'Length of rod A1A3 (m).', '> 0', None),
-    ('L2', 1.0, DOUBLE, PHYSICAL, 'Length of rod A2A4 (m).', '> 0', None),
-    ('k', 100.0, DOUBLE, PHYSICAL,
-     'Stiffness of all three springs a, b, c (N/m), unless ka/kb/kc override it.', '> 0', None),
-    ('ka', 0.0, DOUBLE, PHYSICAL, 'Stiffness of spring a = A2A3 (N/m); 0.0 = use k.', '>= 0', None),
-    ('kb', 0.0, DOUBLE, PHYSICAL, 'Stiffness of spring b = A1A4 (N/m); 0.0 = use k.', '>= 0', None),
-    ('kc', 0.0, DOUBLE, PHYSICAL, 'Stiffness of spring c = A3A4 (N/m); 0.0 = use k.', '>= 0', None),
-    ('m1', 0.0, DOUBLE, PHYSICAL,
-     'Mass of rod A1A3 (kg); its weight acts along -y of the base frame.', '>= 0', None),
-    ('m2', 0.0, DOUBLE, PHYSICAL, 'Mass of rod A2A4 (kg).', '>= 0', None),
-    ('force_a3', [0.0, 0.0], DOUBLE_ARRAY, FORCE,
-     'Force [fx, fy] at A3 (N, base frame; fy > 0 pulls up) at start-up and on reset; '
-     'setting it at runtime applies it at once, tracked like a force_a3 message.',
-     'two finite numbers', None),
-    ('force_a4', [0.0, 0.0], DOUBLE_ARRAY, FORCE,
-     'Force [fx, fy] at A4 (N), as force_a3.', 'two finite numbers', None),
-    ('rho_initial', 0.75, DOUBLE, INITIAL,
-     'Actuator length at start-up and on reset (m).', 'rho_min <= rho_initial <= rho_max', None),
-    ('initial_theta', [0.7, 0.7], DOUBLE_ARRAY, INITIAL,
-     'Start guess [theta1, theta2] (rad): the node starts (and resets) in the stable '
-     'equilibrium whose basin holds it; picks the branch.', 'two finite numbers', None),
-    ('rho_min', 0.05, DOUBLE, LIMIT, 'Smallest accepted actuator command (m).',
-     '0 < rho_min < rho_max; current and initial rho must stay inside', None),
-    ('rho_max', 1.95, DOUBLE, LIMIT, 'Largest accepted actuator command (m).',
-     'rho_max > rho_min; current and initial rho must stay inside', None),
-    ('max_rho_rate', 0.0, DOUBLE, SETTING,
-     'Actuator speed limit (m/s). 0 = no limit: a command is one straight path. '
-     'Otherwise the actuator moves toward the latest target at this speed, one tracked '
-     'segment per timer tick (publish_rate) and per command.', '>= 0', (0.0, 100.0)),
-    ('warn_margin', 0.05, DOUBLE, SETTING,
-     'equilibrium is WARN (near a jump) when the stability margin (smallest Hessian '
-     'eigenvalue, J/rad^2) is below warn_margin * min(ka, kb, kc) * L1 * L2.', '0..1',
-     (0.0, 1.0)),
-)
-_MODULE_SPEC = {p[0]: p for p in MODULE_PARAMETERS}
+#: ROS parameter type of a type name of the module parameter table.
+ROS_TYPES = {'double': DOUBLE, 'double_array': DOUBLE_ARRAY}
 
 #: Slowest markers rate other than 0 (off): a slower one is a typo (5e-324 would give a
 #: timer period that cannot be represented).
@@ -103,16 +67,6 @@ NODE_PARAMETERS = (
 _NODE_SPEC = {p[0]: p for p in NODE_PARAMETERS}
 
 
-def _effective_stiffness(k, override):
-    """``<m>.ka/kb/kc`` of 0.0 means "use ``<m>.k``"."""
-    return override if override > 0.0 else k
-
-
-def _finite_pair(value):
-    return (value is not None and len(value) == 2
-            and all(isinstance(v, float) and math.isfinite(v) for v in value))
-
-
 def declarations(names):
     """(name, default, ParameterDescriptor) of every node and module parameter."""
     out = []
@@ -122,7 +76,7 @@ def declarations(names):
     for m in names:
         for name, default, type_, _kind, description, constraints, range_ in MODULE_PARAMETERS:
             out.append((f'{m}.{name}', default, descriptor(
-                description, type_=type_, constraints=constraints, range_=range_)))
+                description, type_=ROS_TYPES[type_], constraints=constraints, range_=range_)))
     return out
 
 
@@ -130,89 +84,9 @@ def parameter_types(names):
     """{parameter name: Parameter.Type} of every declared parameter."""
     types = {name: spec[2] for name, spec in _NODE_SPEC.items()}
     for m in names:
-        types.update({f'{m}.{name}': spec[2] for name, spec in _MODULE_SPEC.items()})
+        types.update({f'{m}.{name}': ROS_TYPES[spec[2]] for spec in MODULE_PARAMETERS
+                      for name in (spec[0],)})
     return types
-
-
-def kind_of(key):
-    """What a runtime change of module parameter ``key`` does (PHYSICAL, FORCE ...)."""
-    return _MODULE_SPEC[key][3]
-
-
-def module_getter(module, values):
-    """get(key): the value of ``<module>.<key>`` in ``values`` (arrays as float lists)."""
-    prefix = module + '.'
-
-    def get(key):
-        value = values[prefix + key]
-        if _MODULE_SPEC[key][2] == DOUBLE_ARRAY and value is not None:
-            return [float(v) for v in value]
-        return value
-    return get
-
-
-def module_params(get, rho, force_a3, force_a4):
-    """The :class:`ModuleParams` of the values ``get`` reads, at ``rho`` and these forces."""
-    k = get('k')
-    return ModuleParams(
-        rho=rho, L1=get('L1'), L2=get('L2'),
-        ka=_effective_stiffness(k, get('ka')), kb=_effective_stiffness(k, get('kb')),
-        kc=_effective_stiffness(k, get('kc')),
-        f3x=force_a3[0], f3y=force_a3[1], f4x=force_a4[0], f4y=force_a4[1],
-        m1=get('m1'), m2=get('m2'))
-
-
-def initial_params(get):
-    """The module at start-up and on reset: rho_initial and the force parameters."""
-    return module_params(get, get('rho_initial'), get('force_a3'), get('force_a4'))
-
-
-def module_limits(get):
-    return ModuleLimits(rho_min=get('rho_min'), rho_max=get('rho_max'),
-                        max_rho_rate=get('max_rho_rate'), warn_margin=get('warn_margin'))
-
-
-#: The ModuleParams fields a runtime parameter change may set (all but rho).
-DESIGN_FIELDS = ('L1', 'L2', 'ka', 'kb', 'kc', 'f3x', 'f3y', 'f4x', 'f4y', 'm1', 'm2')
-
-
-def design_changes(get, live, keys):
-    """{field: value} of a module whose parameters ``keys`` changed: the design from the
-    parameter values; forces from them only if a force parameter is among ``keys``
-    (otherwise the live forces, which force messages may have changed)."""
-    f3 = get('force_a3') if 'force_a3' in keys else (live.f3x, live.f3y)
-    f4 = get('force_a4') if 'force_a4' in keys else (live.f4x, live.f4y)
-    end = module_params(get, live.rho, f3, f4)
-    return {name: getattr(end, name) for name in DESIGN_FIELDS}
-
-
-def check_module_values(m, get):
-    """Why the values of module ``m``'s parameters are refused, or '' if they are fine."""
-    for key in ('L1', 'L2', 'k'):
-        v = get(key)
-        if not (math.isfinite(v) and v > 0.0):
-            return f'{m}.{key} must be finite and > 0, got {v!r}'
-    for key, meaning in (('ka', '0.0 = use k'), ('kb', '0.0 = use k'),
-                         ('kc', '0.0 = use k'), ('m1', 'kg'), ('m2', 'kg')):
-        v = get(key)
-        if not (math.isfinite(v) and v >= 0.0):
-            return f'{m}.{key} must be finite and >= 0 ({meaning}), got {v!r}'
-    for key in ('force_a3', 'force_a4', 'initial_theta'):
-        v = get(key)
-        if not _finite_pair(v):
-            return f'{m}.{key} must be two finite numbers, got {shown(v)}'
-    lo, hi, initial = get('rho_min'), get('rho_max'), get('rho_initial')
-    if not (math.isfinite(lo) and lo > 0.0):
-        return f'{m}.rho_min must be finite and > 0, got {lo!r}'
-    if not (math.isfinite(hi) and hi > lo):
-        return f'{m}.rho_max must be finite and > rho_min ({lo!r}), got {hi!r}'
-    if not (math.isfinite(initial) and lo <= initial <= hi):
-        return f'{m}.rho_initial={initial!r} must lie in [rho_min, rho_max] = [{lo!r}, {hi!r}]'
-    try:
-        initial_params(get)
-    except InvalidParameterError as exc:
-        return f'{m}: {exc}'
-    return ''
 
 
 def check_node_values(values):

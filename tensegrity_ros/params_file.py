@@ -16,7 +16,9 @@ The layout is the node's (``config/default.yaml``, ``config/neck.yaml``)::
           rho_initial: 0.09       # m
           initial_theta: [0.75, 0.75]   # rad, start guess of the node
 
-Absent keys take the node's defaults (:data:`MODULE_DEFAULTS`).  Node-wide
+Absent keys take the node's defaults (``module_parameters.MODULE_DEFAULTS``), and the
+modules are built by the node's rule (``module_parameters.initial_params``: ``k`` for
+every spring unless ``ka``/``kb``/``kc`` override it).  Node-wide
 settings (rates, frame) and per-module limits are read but not used by the
 offline analysis; unknown per-module keys are reported in
 :attr:`StackConfig.ignored` (the node ignores them with a warning too).
@@ -29,15 +31,9 @@ import math
 import re
 from dataclasses import dataclass
 
-from .core import ModuleParams, InvalidParameterError
+from .core import InvalidParameterError, ModuleParams
+from .module_parameters import MODULE_DEFAULTS, initial_params
 
-#: Per-module parameters of the node and their defaults (node_parameters.MODULE_PARAMETERS).
-MODULE_DEFAULTS = {
-    'L1': 1.0, 'L2': 1.0, 'k': 100.0, 'ka': 0.0, 'kb': 0.0, 'kc': 0.0, 'm1': 0.0, 'm2': 0.0,
-    'force_a3': (0.0, 0.0), 'force_a4': (0.0, 0.0), 'rho_initial': 0.75,
-    'initial_theta': (0.7, 0.7), 'rho_min': 0.05, 'rho_max': 1.95, 'max_rho_rate': 0.0,
-    'warn_margin': 0.05,
-}
 _PAIRS = ('force_a3', 'force_a4', 'initial_theta')
 _POSITIVE = ('L1', 'L2', 'k', 'rho_initial')
 _NON_NEGATIVE = ('ka', 'kb', 'kc', 'm1', 'm2')
@@ -198,14 +194,8 @@ def load_stack_config(path, node=None):
             if not values[key_name] >= 0.0:
                 raise ConfigError(f'{path}: {name}.{key_name} must be >= 0 (0 = use k), '
                                   f'got {values[key_name]!r}')
-        k = values['k']
         try:
-            params = ModuleParams(
-                rho=values['rho_initial'], L1=values['L1'], L2=values['L2'],
-                ka=values['ka'] or k, kb=values['kb'] or k, kc=values['kc'] or k,
-                f3x=values['force_a3'][0], f3y=values['force_a3'][1],
-                f4x=values['force_a4'][0], f4y=values['force_a4'][1],
-                m1=values['m1'], m2=values['m2'])
+            params = initial_params(values.__getitem__)       # the node's rule, at rho_initial
         except InvalidParameterError as exc:
             raise ConfigError(f'{path}: module {name}: {exc}') from None
         modules.append(ModuleConfig(name=name, params=params,

@@ -370,7 +370,7 @@ def test_batch_solves_generic_rows_itself_and_agrees_with_the_scalar_solver(monk
     instead of failing Newton and marking its row delicate); where it answers, it
     answers what the scalar solver does."""
     import importlib
-    eq_module = importlib.import_module('tensegrity_ros.core.equilibria')
+    eq_module = importlib.import_module('tensegrity_ros.core.batch_solver')
     rng = np.random.default_rng(11)
     n = 20_000
     args = dict(rho=rng.uniform(0.01, 3, n), L1=rng.uniform(0.2, 3, n), L2=rng.uniform(0.2, 3, n),
@@ -418,7 +418,7 @@ def test_batch_detects_lost_roots(monkeypatch, p):
     pruning is limited to isolated roots, see CANDIDATE_RATIO.)"""
     import importlib
     import itertools
-    eq_module = importlib.import_module('tensegrity_ros.core.equilibria')
+    eq_module = importlib.import_module('tensegrity_ros.core.batch_solver')
     s = equilibria(p)
     candidate_limit = eq_module._candidate_limit
     lost = []

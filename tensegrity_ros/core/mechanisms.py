@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .analysis import operation_range
-from .equilibria import equilibria
+from .operation_range import operation_range
+from .polynomial_solver import equilibria
 from .events import Jump
 from .module import node_positions
 from .stack import Stack, settle_stack, track_stack

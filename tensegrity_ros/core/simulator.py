@@ -16,7 +16,7 @@ Times are integer nanoseconds (as ROS clocks give them), so elapsed times are ex
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -25,6 +25,7 @@ from .continuation import TrackingError
 from .events import JumpAhead, Outcome, TrackingFailure
 from .mechanisms import make_jump, mechanism_for
 from .module import InvalidParameterError, ModuleParams
+from .start_state import start_state
 from .tracking import ModuleJump
 
 #: A published state must have lambda_min > this * |lambda_max| (a verified minimum).
@@ -197,7 +198,9 @@ class Simulator:
         else:
             moved = ev.combined(self._retarget(i, rho, now_ns, cause)
                                 for i, rho in targets.items())
-        return replace(moved, events=warnings + moved.events)
+        if warnings:
+            moved = Outcome(status=moved.status, events=warnings + moved.events)
+        return moved
 
     def set_force(self, index, node, force, now_ns, cause=None):
         """Force (fx, fy) at node ``'a3'`` or ``'a4'`` of a module (N, base frame)."""
@@ -262,22 +265,19 @@ class Simulator:
                             for i, slot in enumerate(self._slots) if slot.target is not None])
 
     def reset(self, modules, initial_theta):
-        """Start over: settle ``modules`` from ``initial_theta`` (one [t1, t2] per module);
-        motion, jumps and tracking status are cleared.  Refused (state unchanged) if no
+        """Start over: settle ``modules`` from ``initial_theta`` (one [t1, t2] per module;
+        None: the default start, see :func:`.start_state.start_state`); motion, jumps and
+        tracking status are cleared.  Refused (state unchanged) if no
         stable equilibrium is reached."""
         modules = tuple(modules)
         if len(modules) != len(self._slots):
             raise ValueError(f'{len(modules)} modules given, the simulator has '
                              f'{len(self._slots)}')
         try:
-            state = self._mechanism.settle(modules, [list(t) for t in initial_theta])
+            state = start_state(modules, initial_theta)
         except SOLVER_ERRORS as exc:
             return ev.refused(ev.PARAMETER_VALUE,
                               f'no stable equilibrium from initial_theta: {exc}')
-        if not state.stable:
-            return ev.refused(ev.PARAMETER_VALUE, 'no stable equilibrium from initial_theta: '
-                                                  'settled on a state that is not a stable '
-                                                  'equilibrium')
         self._set_state(modules, state)
         self.jumps_total = 0
         for slot in self._slots:
@@ -359,7 +359,7 @@ class Simulator:
             failed = self._failed(trigger, f'{cause}: stopped at {self.names[trigger]} '
                                            f'rho={self.modules[trigger].rho!r}: '
                                            f'{motion.message}')
-            return replace(failed, events=jumps + failed.events)
+            return Outcome(status=ev.FAILED, events=jumps + failed.events)
         for slot in self._slots:
             slot.tracking = 'ok'
         return Outcome(events=jumps)

@@ -15,7 +15,7 @@ import numpy as np
 from . import continuation as _continuation
 from . import module as _m
 from .continuation import TrackerSettings
-from .equilibria import Equilibrium, _build, _eigenvalues_2x2
+from .classification import Equilibrium, _build, _eigenvalues_2x2
 from .module import ModuleParams, PARAMETER_NAMES
 
 

@@ -1,0 +1,97 @@
+"""The package's import arrows all point down (README, "Package layout"): no cycles, the
+core imports nothing outside it, figures never import the command line, and only the
+ROS layer (node, node_parameters, ros_conversions) imports rclpy or messages."""
+import ast
+import pathlib
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent / 'tensegrity_ros'
+ROS_LAYER = {'node', 'node_parameters', 'ros_conversions'}
+
+
+def _modules():
+    out = {}
+    for path in ROOT.rglob('*.py'):
+        parts = path.relative_to(ROOT.parent).with_suffix('').parts
+        out['.'.join(parts[:-1] if parts[-1] == '__init__' else parts)] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _imports(name, path):
+    """(package modules, top-level external packages) that ``name`` imports, anywhere in it."""
+    package = name if path.name == '__init__.py' else name.rsplit('.', 1)[0]
+    inside, outside = set(), set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split('.')[:len(package.split('.')) - node.level + 1]
+                target = '.'.join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ''
+            submodules = {f'{target}.{a.name}' for a in node.names} & MODULES.keys()
+            if submodules:
+                inside |= submodules
+            elif target in MODULES:
+                inside.add(target)
+            else:
+                outside.add(target.split('.')[0])
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                (inside if alias.name in MODULES else outside).add(
+                    alias.name if alias.name in MODULES else alias.name.split('.')[0])
+    inside.discard(name)
+    return inside, outside
+
+
+GRAPH = {name: _imports(name, path) for name, path in MODULES.items()}
+
+
+def _short(name):
+    return name.removeprefix('tensegrity_ros.') or 'tensegrity_ros'
+
+
+def test_no_import_cycles():
+    done, active = set(), []
+
+    def visit(name):
+        if name in active:
+            cycle = active[active.index(name):] + [name]
+            pytest.fail('import cycle: ' + ' -> '.join(map(_short, cycle)))
+        if name in done:
+            return
+        active.append(name)
+        for dep in GRAPH[name][0]:
+            visit(dep)
+        active.pop()
+        done.add(name)
+
+    for name in sorted(GRAPH):
+        visit(name)
+
+
+def test_core_imports_only_core_the_standard_library_numpy_scipy():
+    for name, (inside, outside) in GRAPH.items():
+        if not name.startswith('tensegrity_ros.core'):
+            continue
+        assert all(dep.startswith('tensegrity_ros.core') for dep in inside), (name, inside)
+        assert outside - sys.stdlib_module_names - {'__future__'} <= {'numpy', 'scipy'}, \
+            (name, outside)
+
+
+@pytest.mark.parametrize('tool', ['figures', 'problem', 'params_file', 'module_parameters'])
+def test_offline_tools_never_import_the_command_line_or_ros(tool):
+    inside, outside = GRAPH[f'tensegrity_ros.{tool}']
+    assert 'tensegrity_ros.cli' not in inside
+    assert not {_short(m) for m in inside} & ROS_LAYER
+    assert 'rclpy' not in outside
+
+
+def test_only_the_ros_layer_imports_the_ros_layer():
+    for name, (inside, _) in GRAPH.items():
+        if _short(name) not in ROS_LAYER:
+            assert not {_short(m) for m in inside} & ROS_LAYER, name

@@ -3,7 +3,7 @@
 The baseline does by hand what a command costs without the simulator (what the node
 did inline before it had one): the operation-range early warning (cached, hinted),
 ``ModuleParams.with_``, ``track_module`` and the positive-definiteness check.  Both
-run the same 1000 small steps (|d rho| <= 1e-3 m, no jump); best of 5 each.  The
+run the same 1000 small steps (|d rho| <= 1e-3 m, no jump); best of 9 each.  The
 ratio is the simulator's bookkeeping (targets, outcomes, events) on top.
 
     python benchmarks/bench_simulator.py
@@ -17,7 +17,7 @@ from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 
 START = ModuleParams.paper(0.8)
 RHOS = [0.8 + 0.1 * math.sin(i * 0.01) for i in range(1000)]
-REPEAT = 5
+REPEAT = 9
 
 
 def with_simulator():

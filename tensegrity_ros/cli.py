@@ -738,7 +738,8 @@ def cmd_stack_track(args, out):
     if args.json:
         out.write(json.dumps(doc, indent=2) + '\n')
         return code
-    out.write(f'path: {describe_modules(start.modules, names)}\n  ->  {describe_modules(end.modules, names)}\n')
+    out.write(f'path: {describe_modules(start.modules, names)}\n'
+              f'  ->  {describe_modules(end.modules, names)}\n')
     out.write(f'start ({source}): theta [deg] {_theta_text(first.theta, names)}; '
               f'{_head_text(first)}; margin {first.stability_margin:.4g} N/m\n')
     if not track.jumps:

@@ -52,6 +52,11 @@ def test_no_stable_start_is_a_value_error_naming_the_cause(monkeypatch):
         fig8a_simulator()
 
 
+def test_unusable_limits_at_construction_are_a_value_error():
+    with pytest.raises(ValueError, match='m0: max_rho_rate must be finite'):
+        Simulator([fig8a()], [LOWER], [ModuleLimits(0.1, 1.0, max_rho_rate=math.nan)])
+
+
 def test_a_command_is_the_trackers_straight_path():
     sim = fig8a_simulator()
     outcome = sim.command_rho(0, 0.3, 0)
@@ -136,6 +141,9 @@ def test_retarget_moves_on_from_where_the_actuator_is():
     (lambda sim: sim.set_parameters({0: {'L1': -1.0}}, 0, 'p'), 'parameter_value'),
     (lambda sim: sim.set_parameters({0: {'rho': 0.3}}, 0, 'p'), 'parameter_value'),
     (lambda sim: sim.set_limits(0, ModuleLimits(0.6, 1.0), 0), 'parameter_value'),
+    (lambda sim: sim.set_limits(0, ModuleLimits(0.1, 1.0, max_rho_rate=-1.0), 0),
+     'parameter_value'),
+    (lambda sim: sim.set_limits(0, ModuleLimits(1.0, 0.1), 0), 'parameter_value'),
 ])
 def test_bad_input_is_refused_with_a_reason_and_changes_nothing(call, reason):
     sim = fig8a_simulator()

@@ -9,6 +9,8 @@ from .batch_solver import BATCH_BLOCK, EquilibriumBatch, equilibria_batch
 from .classification import (DEGENERACY_TOL, KIND_DEGENERATE, KIND_MAXIMUM, KIND_MINIMUM,
                              KIND_SADDLE, Equilibrium, EquilibriumSet, classify,
                              hessian_eigenvalues)
+# record builders other core modules imported from here before the split
+from .classification import _build, _eigenvalues_2x2  # noqa: F401
 from .polynomial_solver import equilibria
 
 __all__ = ['BATCH_BLOCK', 'EquilibriumBatch', 'equilibria_batch', 'DEGENERACY_TOL',

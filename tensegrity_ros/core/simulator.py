@@ -68,6 +68,18 @@ class ModuleStatus:
     warn_margin: float
 
 
+def _limits_problem(limits):
+    """Why ``limits`` are not usable limits ('' if they are)."""
+    lo, hi, rate, warn = limits.rho_min, limits.rho_max, limits.max_rho_rate, limits.warn_margin
+    if math.isnan(lo) or math.isnan(hi) or not lo <= hi:
+        return f'rho_min={lo!r} and rho_max={hi!r} must be numbers with rho_min <= rho_max'
+    if not (math.isfinite(rate) and rate >= 0.0):
+        return f'max_rho_rate must be finite and >= 0, got {rate!r}'
+    if not (math.isfinite(warn) and warn >= 0.0):
+        return f'warn_margin must be finite and >= 0, got {warn!r}'
+    return ''
+
+
 class _Module:
     """Mutable per-module state of the simulator: settings, motion, jump record."""
 
@@ -85,7 +97,7 @@ class Simulator:
     equilibrium whose basin holds ``initial_theta`` (one [t1, t2] per module).
 
     ``names`` label the modules in messages (default ``m0``, ``m1`` ...).  Raises
-    ``ValueError`` if there is no stable equilibrium to start from.
+    ``ValueError`` for unusable limits or if there is no stable equilibrium to start from.
     """
 
     def __init__(self, modules, initial_theta, limits=None, names=None):
@@ -97,6 +109,11 @@ class Simulator:
         if len(self.names) != len(modules):
             raise ValueError(f'{len(self.names)} names for {len(modules)} modules')
         limits = list(limits) if limits is not None else [ModuleLimits()] * len(modules)
+        if len(limits) != len(modules):
+            raise ValueError(f'{len(limits)} limits for {len(modules)} modules')
+        for name, lim in zip(self.names, limits):
+            if _limits_problem(lim):
+                raise ValueError(f'{name}: {_limits_problem(lim)}')
         self._mechanism = mechanism_for(len(modules))
         self._slots = [_Module(lim) for lim in limits]
         self.modules = None             # live ModuleParams, bottom to top
@@ -185,6 +202,8 @@ class Simulator:
         Without speed limits every target is one straight path (all modules together);
         a speed-limited module moves toward its target in :meth:`advance`.
         """
+        if not targets:
+            return Outcome()
         refusal = self.rhos_refusal(targets)
         if refusal is not None:
             return refusal
@@ -236,6 +255,8 @@ class Simulator:
         :class:`ModuleParams` field but rho): every change is one straight path, the
         jumps it causes are attributed to the first module named.  Pending speed-limited
         motion of those modules is first advanced to ``now_ns``."""
+        if not changes:
+            return Outcome()
         try:
             for index, fields in changes.items():
                 if 'rho' in fields:
@@ -251,7 +272,8 @@ class Simulator:
         """New :class:`ModuleLimits` of a module (pending motion is first advanced to
         ``now_ns`` under the old ones); refused if the actuator or its target would lie
         outside."""
-        reason = self.limits_refusal(index, limits.rho_min, limits.rho_max)
+        reason = _limits_problem(limits) or self.limits_refusal(index, limits.rho_min,
+                                                                limits.rho_max)
         if reason:
             return ev.refused(ev.PARAMETER_VALUE, reason)
         advanced = self._advance_module(index, now_ns)

@@ -442,6 +442,8 @@ class TensegrityNode(Node):
             try:
                 return callback(*args)
             except Exception as exc:
+                if not self.context.ok():   # shut down under it (Ctrl-C): nothing to report
+                    return None
                 self._count_exception(what, exc)
         return guarded
 
@@ -778,8 +780,18 @@ def _parse_cli(argv):
     return parser.parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
+class _Interrupt:
+    """SIGINT/SIGTERM handler behind rclpy's (which shuts the context down, then calls
+    this): while starting, stop at once (KeyboardInterrupt); once spinning, do nothing --
+    the shut-down context ends the spin loop, while an exception raised here would land
+    inside whatever callback is running (the events executor then logs it as FATAL)."""
+
+    def __init__(self):
+        self.spinning = False
+
+    def __call__(self, signum, frame):
+        if not self.spinning:
+            raise KeyboardInterrupt
 
 
 def _parameter_files(argv):
@@ -816,14 +828,16 @@ def main(args=None):
     node = None
     executor = None
     try:
-        # SIGINT and SIGTERM both end in KeyboardInterrupt here (rclpy's handlers, installed
-        # by rclpy.init, shut the context down first and then chain to these).
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        signal.signal(signal.SIGTERM, _interrupt)
+        # SIGINT and SIGTERM: rclpy's handlers, installed by rclpy.init, shut the context
+        # down first and then chain to this one.
+        interrupt = _Interrupt()
+        signal.signal(signal.SIGINT, interrupt)
+        signal.signal(signal.SIGTERM, interrupt)
         rclpy.init(args=argv)
         node = TensegrityNode()
         executor = _make_executor(options.executor)
         executor.add_node(node)
+        interrupt.spinning = True
         # spin_once in a loop rather than spin(): the events executor's spin() does not
         # return on a shutdown from the SIGINT/SIGTERM handler, spin_once does.
         while rclpy.ok():

@@ -298,3 +298,37 @@ def test_serialized_exact_name_is_still_applied(harness):
     h = harness().ready()
     h.jc_pub.publish(_serialized_joint_commands(b'm0_rho', 0.6))
     h.spin_until(lambda: h.joint_states[-1].position[0] == 0.6, what='rho 0.6')
+
+
+# ---------------------------------------------------------------------------
+# Ctrl-C while a callback runs: quiet
+
+
+@pytest.mark.parametrize('executor_kind', ['events', 'single'])
+def test_sigint_while_busy_is_quiet(harness, executor_kind):
+    """Commands keep the node busy when SIGINT shuts its context down under a callback:
+    exit 0, no FATAL/ERROR line and no traceback from the executor."""
+    h = harness(node=False)
+    pub = h.client.create_publisher(JointState, f'{h.ns}/joint_commands', STREAM_QOS)
+    states = []
+    h.client.create_subscription(JointState, f'{h.ns}/joint_states', states.append,
+                                 STREAM_QOS)
+    env = dict(os.environ, PYTHONUNBUFFERED='1')
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'tensegrity_ros.node', '--executor', executor_kind,
+         '--ros-args', '-r', f'__ns:={h.ns}'],
+        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        h.spin_until(lambda: states and pub.get_subscription_count() > 0 or
+                     proc.poll() is not None, what='the node')
+        for i in range(200):
+            pub.publish(JointState(name=['m0_rho'], position=[0.7 + 0.001 * (i % 50)]))
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=TIMEOUT)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, err
+    for bad in ('Traceback', 'Error occurred', '[FATAL]', '[ERROR]'):
+        assert bad not in err + out, err

@@ -708,10 +708,11 @@ def settle(problem: PathProblem, y0, s=0.0, settings: TrackerSettings = TrackerS
     y0 = np.array(y0, dtype=float)
     eigenvalues, modes = problem.stability(y0, s)
     tracker.scale = max(float(np.max(np.abs(eigenvalues))), 1e-300)   # any start, not only a minimum
-    landing = tracker.slide(y0, s)
-    if landing is not None:
-        return landing
     y = tracker.newton(y0, s) if tracker.residual_ok(y0, s) else None
+    if y is None or tracker.definite(tracker.eigenvalues(y, s)):
+        landing = tracker.slide(y0, s)        # not on a saddle: the flow decides alone
+        if landing is not None:
+            return landing
     candidates = []
     for sign in (1.0, -1.0):
         start = y0 if y is None else y

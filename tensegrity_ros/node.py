@@ -55,6 +55,7 @@ from tensegrity_ros.core import (InvalidParameterError, ModuleParams, TrackingEr
                                  ModuleJump, equilibria, node_positions, settle, track_module)
 from tensegrity_ros.core.analysis import operation_range
 from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
+from tensegrity_ros.core.supported_range import check_supported
 
 # ---------------------------------------------------------------------------
 # QoS (documented in msg_docs/ and README.md)
@@ -571,6 +572,8 @@ class TensegrityNode(Node):
                     f'[rho_min, rho_max] = [{lo!r}, {hi!r}]')
         try:
             self._module_params(get, live_rho, get('force_a3'), get('force_a4'))
+            for rho in (lo, hi):            # every length the actuator may reach
+                check_supported(self._module_params(get, rho, get('force_a3'), get('force_a4')))
         except InvalidParameterError as exc:
             return f'{m}: {exc}'
         return ''
@@ -781,7 +784,7 @@ class TensegrityNode(Node):
                 return self._reject('non_finite', f'{topic}: ({x!r}, {y!r}) is not finite')
             forces = {fields[0]: x, fields[1]: y}
             try:
-                end = slot.params.with_(**forces)
+                end = check_supported(slot.params.with_(**forces))
             except InvalidParameterError as exc:     # beyond the supported magnitudes
                 return self._reject('out_of_range', f'{topic}: {exc}')
             self._counters['commands_processed'] += 1

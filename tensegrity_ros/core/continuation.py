@@ -612,7 +612,7 @@ def _bracket(test, a, b, tries=8):
     return a, b, test_a, test_b
 
 
-def _shrink_bracket(test, a, b, test_a, test_b, xtol=1e-14):
+def _shrink_bracket(test, a, b, test_a, test_b, xtol=1e-12):
     """Narrow [a, b] (test(a) > 0 > test(b)) around the root to about xtol.
 
     Secant estimates, each bracketed by two probes 2% of the width either side,

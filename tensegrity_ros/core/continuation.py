@@ -94,7 +94,10 @@ class TrackerSettings:
     #: corrector's slack near a critical point, where rounding is amplified by 1/lambda_min.
     same_state_tol: float = 1e-7
     #: A located critical point must have |lambda_min| below this, relative to the scale.
-    critical_tol: float = 1e-6
+    critical_tol: float = 1e-9
+    #: An arclength step is kept only if the branch direction turns less than this
+    #: (cosine) over it: a sharper turn means the corrector reached another branch.
+    arc_alignment: float = 0.9
     #: Wall-clock seconds one command may take before it gives up (None: no limit).
     time_budget: float | None = None
 
@@ -382,8 +385,11 @@ class _Tracker:
         if end is None:
             return None
         y1, s1 = end
+        direction1 = self.curve_tangent(y1, s1, direction)
+        if direction1 @ direction < self.settings.arc_alignment:
+            return None             # turned too much for one step: another branch, or too long
         eigenvalues = self.eigenvalues(y1, s1)
-        forward = self.curve_tangent(y1, s1, direction)[-1] > 0.0
+        forward = direction1[-1] > 0.0
         if self.definite(eigenvalues) and forward and s1 > s:
             return 'regular', y1, s1, eigenvalues
 
@@ -459,8 +465,8 @@ class _Tracker:
         the critical mode and slides down.  Where the branch turned back at s* and
         the landing closes in on the critical point as the offset shrinks (a minimum
         crossing onto another branch, e.g. a supercritical pitchfork run backwards),
-        the state simply follows: no event.  A landing on its own departure is
-        refused, never reported.  If "just past" lies beyond the end of the command,
+        the state simply follows: no event (so no event can land on its own
+        departure).  If "just past" lies beyond the end of the command,
         the landed state is followed back along its own branch to the end point.
         """
         problem = self.problem
@@ -468,7 +474,7 @@ class _Tracker:
         s_land = s_star + offset
         if s_land > s_end and not _admissible(problem, s_land):
             s_land = s_end
-        landing, ambiguous = self.landing_state(kind, s_star, y_star, s_land)
+        landing, ambiguous, s_land = self.landing_state(kind, s_star, y_star, s_land, s_end)
         event = None if self.continuous(kind, s_star, y_star, s_land, landing, turned) else kind
         if s_land > s_end:
             back = _Tracker(_Segment(problem, s_land, s_end), self.settings).run(landing)
@@ -495,12 +501,30 @@ class _Tracker:
             return True
         if not turned or distance >= cfg.max_state_step:
             return False
-        closer, _ = self.landing_state(kind, s_star, y_star, s_star + 0.01 * (s_land - s_star))
+        try:
+            closer, _, _ = self.landing_state(kind, s_star, y_star, s_star + 0.01 * (s_land - s_star))
+        except TrackingError:
+            return False            # not shown to close in: the verified landing stands
         return (self.step_norm(self.canonical(closer) - self.canonical(y_star))
                 <= 0.3 * distance + cfg.same_state_tol)
 
-    def landing_state(self, kind, s_star, y_star, s_land):
-        """Step off along the critical mode at frozen s_land and slide: (landing, ambiguous)."""
+    def landing_state(self, kind, s_star, y_star, s_land, s_end=None):
+        """Step off along the critical mode at frozen s_land and slide: (landing, ambiguous, s_land).
+
+        With ``s_end`` given, a flow that finds no minimum (it rests on saddles near
+        the fold's ghost) is retried frozen further past the event, up to 1e-3 in s.
+        """
+        while True:
+            try:
+                return (*self._land_once(kind, s_star, y_star, s_land), s_land)
+            except TrackingError:
+                further = s_star + 100.0 * (s_land - s_star)
+                if s_end is None or s_land - s_star >= 1e-3 or (
+                        further > s_end and not _admissible(self.problem, further)):
+                    raise
+                s_land = min(further, s_star + 1e-3)
+
+    def _land_once(self, kind, s_star, y_star, s_land):
         problem = self.problem
         _, psi = self.critical(y_star, s_star)
         sides = []

@@ -122,3 +122,14 @@ def test_every_jump_lands_on_another_stable_equilibrium(which, exponent, sign, t
     assert len(there.jumps) == 1 and there.jumps[0].kind == FOLD
     if back:
         assert runs[1].jumps == ()                       # hysteresis: the upper branch holds
+
+
+def test_a_command_out_of_time_gives_up_on_the_last_verified_state():
+    from tensegrity_ros.core import TrackerSettings
+    start = settle(P(0.5, F3=5, F4=5), [-1.0, -1.0])
+    result = track_module(P(0.5, F3=5, F4=5), P(0.05, F3=5, F4=5), start.theta,
+                          TrackerSettings(time_budget=0.0))
+    assert result.status == 'failed' and 'time budget' in result.message
+    assert result.final.stable and result.jumps == ()
+    exact = [e.theta for e in equilibria(result.end).stable]
+    assert min(wrapped(result.final.theta, t) for t in exact) < 1e-9

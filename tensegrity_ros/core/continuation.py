@@ -583,7 +583,7 @@ class _Tracker:
 
         def velocity(_t, v):
             budget[0] -= 1
-            if budget[0] < 0:
+            if budget[0] < 0 or (budget[0] % 64 == 0 and self.out_of_time()):
                 raise _FlowBudgetExceeded
             return problem.descent(v, s)
 

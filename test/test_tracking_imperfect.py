@@ -133,3 +133,23 @@ def test_a_command_out_of_time_gives_up_on_the_last_verified_state():
     assert result.final.stable and result.jumps == ()
     exact = [e.theta for e in equilibria(result.end).stable]
     assert min(wrapped(result.final.theta, t) for t in exact) < 1e-9
+
+
+def test_tracker_and_operation_range_agree_on_the_branch_ends():
+    """Seeded random modules (asymmetric, horizontal loads): the first event of a command
+    to either side is the end operation_range solves on its extended systems."""
+    rng = np.random.default_rng(3)
+    for _ in range(12):
+        p = ModuleParams(rho=rng.uniform(0.3, 1.2), L2=rng.uniform(0.7, 1.4),
+                         ka=100 * rng.uniform(0.8, 1.2), f3y=rng.uniform(-8, 8),
+                         f4y=rng.uniform(-8, 8), f3x=rng.uniform(-2, 2))
+        start = settle(p, rng.uniform(-3, 3, 2))
+        ends = operation_range(p, start.theta)
+        for end, target in ((ends.lower, 0.02), (ends.upper, 3.0)):
+            result = track_module(p, p.with_(rho=target), start.theta)
+            assert result.status == 'ok', result.message
+            if end.kind == 'limit':
+                continue
+            assert result.jumps, (p, end)
+            assert result.jumps[0].kind == end.kind
+            assert result.jumps[0].params.rho == pytest.approx(end.rho, abs=3e-9)

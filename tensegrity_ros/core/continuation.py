@@ -316,9 +316,10 @@ class _Tracker:
         """Tolerances follow the stiffness scale: the start's, or the local one where
         the branch has softened (relative, so every magnitude works; never looser
         than at the start, so a stiffening branch keeps the start's accuracy)."""
-        local = max(abs(float(eigenvalues[-1])), 1e-300)
-        self.base_scale = local if self.base_scale is None else self.base_scale
-        self.scale = min(local, self.base_scale)
+        local = abs(float(eigenvalues[-1]))
+        if self.base_scale is None:
+            self.base_scale = max(local, 1e-300)
+        self.scale = local if 0.0 < local < self.base_scale else self.base_scale
 
     def out_of_time(self):
         return self.deadline is not None and time.perf_counter() > self.deadline

@@ -25,6 +25,7 @@ from .continuation import TrackingError
 from .events import JumpAhead, Outcome, TrackingFailure
 from .mechanisms import make_jump, mechanism_for
 from .module import InvalidParameterError, ModuleParams
+from .supported_range import check_supported
 from .start_state import start_state
 from .tracking import ModuleJump
 
@@ -245,8 +246,8 @@ class Simulator:
         if not (math.isfinite(fx) and math.isfinite(fy)):
             return ev.refused(ev.NON_FINITE, f'({fx!r}, {fy!r}) is not finite')
         try:
-            self.modules[index].with_(**dict(zip(FORCE_FIELDS[node], (fx, fy))))
-        except InvalidParameterError as exc:
+            check_supported(self.modules[index].with_(**dict(zip(FORCE_FIELDS[node], (fx, fy)))))
+        except InvalidParameterError as exc:        # beyond the supported magnitudes or groups
             return ev.refused(ev.OUT_OF_RANGE, str(exc))
         return None
 

@@ -12,6 +12,7 @@ import math
 
 from tensegrity_ros.core import InvalidParameterError, ModuleParams
 from tensegrity_ros.core.simulator import ModuleLimits
+from tensegrity_ros.log_text import shown
 
 # Kinds of per-module parameters: what a runtime change does.
 PHYSICAL = 'physical'    # geometry, stiffness, masses: tracked like a command
@@ -142,7 +143,7 @@ def check_module_values(m, get):
     for key in ('force_a3', 'force_a4', 'initial_theta'):
         v = get(key)
         if not finite_pair(v):
-            return f'{m}.{key} must be two finite numbers, got {v!r}'
+            return f'{m}.{key} must be two finite numbers, got {shown(v)}'
     lo, hi, initial = get('rho_min'), get('rho_max'), get('rho_initial')
     if not (math.isfinite(lo) and lo > 0.0):
         return f'{m}.rho_min must be finite and > 0, got {lo!r}'

@@ -38,9 +38,11 @@ from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterVal
                               ParameterException)
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64
 from std_srvs.srv import Trigger
@@ -48,6 +50,10 @@ from visualization_msgs.msg import MarkerArray
 
 from tensegrity_ros import node_parameters as params
 from tensegrity_ros import ros_conversions as conv
+from tensegrity_ros.joint_state_names import exact_names
+from tensegrity_ros.log_text import clipped, shown
+from tensegrity_ros.params_file import ConfigError, check_parameter_file
+from tensegrity_ros.core.command_coalescing import LatestCommands, force_key, target_key
 from tensegrity_ros.core.events import Jump, JumpAhead, TrackingFailure
 from tensegrity_ros.core.simulator import Simulator
 from tensegrity_ros.core.stack import Stack
@@ -56,9 +62,10 @@ from tensegrity_ros.core.stack import Stack
 # QoS (documented in msg_docs/ and README.md)
 
 #: Commands: reliable + volatile, so ``ros2 topic pub`` (and any default publisher)
-#: matches.  Depth 100 = 0.1 s of a 1 kHz stream: every command is a path segment
-#: and is processed in order, none is dropped while the node keeps up.
-COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+#: matches.  Depth 1000 = 0.2 s of a 5 kHz stream, the longest a command crossing a fold
+#: keeps the node busy on a loaded machine; each callback then reads everything waiting
+#: (coalescing superseded targets), so the queue does not overflow.
+COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
 #: Latched status (``stable``, ``equilibrium``): a late subscriber gets the current one.
@@ -82,6 +89,10 @@ MARKERS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 DEFAULT_NODE_NAME = 'tensegrity'
+#: Start-up check for another node of the same name: every this many seconds, this many
+#: times (discovery on loopback takes well under a second).
+NAME_CHECK_PERIOD_SEC = 0.5
+NAME_CHECKS = 6
 #: Rejected input and failures are logged at most once per this many seconds per reason.
 WARN_THROTTLE_SEC = 2.0
 
@@ -125,7 +136,8 @@ class TensegrityNode(Node):
     def _setup(self):
         self._node_clock = self.get_clock()
         self._counters = {f'rejected_{r}': 0 for r in REJECT_REASONS}
-        self._counters.update(commands_processed=0, callback_exceptions=0, jump_warnings=0,
+        self._counters.update(commands_processed=0, commands_coalesced=0,
+                              callback_exceptions=0, jump_warnings=0,
                               tracking_failures=0, jumps_total=0)
         self._level_events = set()          # what happened since the last /diagnostics
         self._loggers = {}
@@ -143,6 +155,9 @@ class TensegrityNode(Node):
         self._rho_joints = {f'{m}_rho': i for i, m in enumerate(self._names)}
         self._js = conv.JointStateBuffer(self._names)
         self._create_interfaces()
+        self._name_checks = NAME_CHECKS
+        self._name_timer = self.create_timer(NAME_CHECK_PERIOD_SEC,
+                                             self._guard(self._check_name_unique, 'name check'))
         self._publish_everything()
         for i, m in enumerate(self._names):
             params, eq = self._sim.module(i)
@@ -163,10 +178,13 @@ class TensegrityNode(Node):
                 msg_type, topic, qos,
                 event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
 
-        def subscription(msg_type, topic, callback):
-            return self.create_subscription(
-                msg_type, topic, self._guard(callback, topic), COMMAND_QOS,
-                event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
+        def subscription(msg_type, topic, read, raw=False):
+            made = []                   # the callback drains its own subscription
+            made.append(self.create_subscription(
+                msg_type, topic,
+                self._guard(lambda msg: self._on_commands(made[0], read, msg), topic),
+                COMMAND_QOS, raw=raw,
+                event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False)))
 
         self._js_pub = publisher(JointState, 'joint_states', STATE_QOS)
         self._stable_pub = publisher(Bool, 'stable', STATUS_QOS)
@@ -182,10 +200,11 @@ class TensegrityNode(Node):
         self._head_pub = publisher(PoseStamped, 'head_pose', HEAD_QOS)
 
         for i, m in enumerate(self._names):
-            subscription(Float64, f'{m}/rho_cmd', self._make_rho_callback(i))
+            subscription(Float64, f'{m}/rho_cmd', self._read_rho(i))
             for node in ('a3', 'a4'):
-                subscription(Vector3, f'{m}/force_{node}', self._make_force_callback(i, node))
-        subscription(JointState, 'joint_commands', self._on_joint_commands)
+                subscription(Vector3, f'{m}/force_{node}', self._read_force(i, node))
+        # serialized: joint names are read exactly (rclpy would cut them at a NUL)
+        subscription(JointState, 'joint_commands', self._read_joint_commands, raw=True)
         self.create_service(Trigger, 'reset', self._on_reset)
 
         # One timer serves joint_states, speed-limited motion, markers and /diagnostics
@@ -202,6 +221,22 @@ class TensegrityNode(Node):
         self.add_pre_set_parameters_callback(self._pre_set_parameters)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
+
+    def _check_name_unique(self):
+        """Start-up: WARN once if another node in the graph has this fully qualified name
+        (two nodes with one name share topics, services and parameters unnoticed).  Runs a
+        few times while discovery settles, then stops."""
+        me = (self.get_name(), self.get_namespace())
+        same = sum(1 for entry in self.get_node_names_and_namespaces() if entry == me)
+        self._name_checks -= 1
+        if same > 1:
+            self.get_logger().warning(
+                f'another node named {self.get_fully_qualified_name()} is already running '
+                f'({same} in the graph): topics, services and parameters are shared; start '
+                f'this one under another name or namespace (-r __node:=... / __ns:=...)')
+        if same > 1 or self._name_checks <= 0:
+            self._name_timer.cancel()
+            self.destroy_timer(self._name_timer)
 
     # -- start-up: parameters -> simulator ---------------------------------------------
 
@@ -227,7 +262,7 @@ class TensegrityNode(Node):
         for m in names:
             if not _MODULE_NAME.match(m):
                 raise ConfigurationError(
-                    f'module name {m!r}: use a letter followed by letters, digits or _')
+                    f'module name {shown(m)}: use a letter followed by letters, digits or _')
         return names
 
     def _coerce_overrides(self, types):
@@ -263,7 +298,7 @@ class TensegrityNode(Node):
     def _warn_unknown_overrides(self):
         known = set(self._declared) | {'modules', 'use_sim_time'}
         for name in sorted(set(self._parameter_overrides) - known):
-            self.get_logger().warning(f'ignoring unknown parameter {name!r}')
+            self.get_logger().warning(f'ignoring unknown parameter {shown(name)}')
 
     def _initial_configuration(self):
         """(modules at rho_initial, initial_theta of each) from the parameter values."""
@@ -293,7 +328,7 @@ class TensegrityNode(Node):
             out = []
             for p in parameters:
                 if not self.has_parameter(p.name):
-                    self._reject('parameter_undeclared', f'no parameter named {p.name!r}')
+                    self._reject('parameter_undeclared', f'no parameter named {shown(p.name)}')
                     out.append(p)
                     continue
                 d = self.describe_parameter(p.name)
@@ -407,15 +442,17 @@ class TensegrityNode(Node):
             try:
                 return callback(*args)
             except Exception as exc:
+                if not self.context.ok():   # shut down under it (Ctrl-C): nothing to report
+                    return None
                 self._count_exception(what, exc)
         return guarded
 
     def _count_exception(self, what, exc):
         self._counters['callback_exceptions'] += 1
         self._level_events.add('exception')
-        self._throttled('exception').error(
+        self._throttled('exception').error(clipped(
             f'{what}: unexpected {type(exc).__name__}: {exc} (state unchanged; '
-            f'{self._counters["callback_exceptions"]} so far)',
+            f'{self._counters["callback_exceptions"]} so far)'),
             throttle_duration_sec=WARN_THROTTLE_SEC)
         self.get_logger().debug(traceback.format_exc())
 
@@ -431,29 +468,68 @@ class TensegrityNode(Node):
         self._counters[key] += 1
         self._level_events.add('rejected')
         self._throttled(reason).warning(
-            f'{text}: dropped ({key} = {self._counters[key]})',
+            clipped(f'{text}: dropped ({key} = {self._counters[key]})'),
             throttle_duration_sec=WARN_THROTTLE_SEC)
 
     # -- messages -> simulator calls ------------------------------------------------------
+    #
+    # A command message is first *read* (checked: bad input is rejected and counted), then
+    # *applied* (tracked).  Every callback reads all the commands waiting in its
+    # subscription's queue at once, so that a slow command (a fold) never lets the queue
+    # overflow; of those, only the latest target of a module is applied, the others are
+    # coalesced and counted (core.command_coalescing).
 
-    def _make_rho_callback(self, index):
+    def _on_commands(self, subscription, read, first):
+        """Callback of a command subscription: ``first`` and every message waiting behind
+        it are read with ``read`` (-> (key, apply) or None if rejected); the latest of
+        each key is applied."""
+        waiting = LatestCommands()
+        for msg in self._waiting_messages(subscription, first):
+            command = read(msg)
+            if command is not None:
+                waiting.offer(*command)
+        self._counters['commands_coalesced'] += waiting.coalesced
+        for apply in waiting.take():
+            apply()
+
+    @staticmethod
+    def _waiting_messages(subscription, first):
+        """``first``, then the messages already waiting in the subscription's queue (at
+        most its depth: newer ones are left for the next callback)."""
+        yield first
+        for _ in range(COMMAND_QOS.depth):
+            with subscription.handle:
+                taken = subscription.handle.take_message(subscription.msg_type,
+                                                         subscription.raw)
+            if taken is None:
+                return
+            yield taken[0]
+
+    def _read_rho(self, index):
         topic = f'{self._names[index]}/rho_cmd'
 
-        def on_rho_cmd(msg):
-            now = self._now_ns()
-            self._command(self._sim.command_rho(index, msg.data, now), topic, now)
-        return on_rho_cmd
+        def read(msg):
+            targets = {index: msg.data}
+            refusal = self._sim.rhos_refusal(targets)
+            if refusal is not None:
+                return self._reject(refusal.reason, f'{topic}: {refusal.message}')
+            return target_key(targets), lambda: self._apply_targets(targets, topic, 'rho_cmd')
+        return read
 
-    def _make_force_callback(self, index, node):
+    def _read_force(self, index, node):
         topic = f'{self._names[index]}/force_{node}'
 
-        def on_force(msg):              # z is ignored (planar mechanism)
-            now = self._now_ns()
-            self._command(self._sim.set_force(index, node, (msg.x, msg.y), now), topic, now)
-        return on_force
+        def read(msg):                  # z is ignored (planar mechanism)
+            force = (msg.x, msg.y)
+            refusal = self._sim.force_refusal(index, node, force)
+            if refusal is not None:
+                return self._reject(refusal.reason, f'{topic}: {refusal.message}')
+            return force_key(index, node), lambda: self._apply_force(index, node, force, topic)
+        return read
 
-    def _on_joint_commands(self, msg):
-        names, positions = msg.name, msg.position
+    def _read_joint_commands(self, raw):
+        msg = deserialize_message(raw, JointState)
+        names, positions = exact_names(raw) or msg.name, msg.position
         if not names:
             return self._reject('size_mismatch', 'joint_commands: no joint names')
         if len(names) != len(positions):
@@ -463,14 +539,24 @@ class TensegrityNode(Node):
         for name, value in zip(names, positions):
             index = self._rho_joints.get(name)
             if index is None:
-                return self._reject('unknown_joint', f'joint_commands: unknown joint {name!r} '
+                return self._reject('unknown_joint', f'joint_commands: unknown joint {shown(name)} '
                                                      f'(commandable: {sorted(self._rho_joints)})')
             if index in targets:
-                return self._reject('duplicate_joint', f'joint_commands: {name!r} given twice')
+                return self._reject('duplicate_joint', f'joint_commands: {shown(name)} given twice')
             targets[index] = value
+        refusal = self._sim.rhos_refusal(targets)
+        if refusal is not None:
+            return self._reject(refusal.reason, f'joint_commands: {refusal.message}')
+        return target_key(targets), lambda: self._apply_targets(
+            targets, 'joint_commands', 'joint_commands')
+
+    def _apply_targets(self, targets, source, cause):
         now = self._now_ns()
-        self._command(self._sim.command_rhos(targets, now), 'joint_commands', now,
-                      count=len(targets))
+        self._command(self._sim.command_rhos(targets, now, cause), source, now)
+
+    def _apply_force(self, index, node, force, source):
+        now = self._now_ns()
+        self._command(self._sim.set_force(index, node, force, now), source, now)
 
     def _command(self, outcome, source, now_ns, count=1):
         """Report a command's outcome: a refusal is counted and dropped; otherwise its
@@ -529,7 +615,8 @@ class TensegrityNode(Node):
                                hardware_id=self._hardware_id, modules=self._names, jump=jump)
         self._jumps_pub.publish(msg)
         what = 'jump' if len(self._names) == 1 else 'stack jump'
-        self.get_logger().warning(f'{m}: {what} ({jump.cause}): {msg.message}')
+        self._throttled('jump').warning(f'{m}: {what} ({jump.cause}): {msg.message}',
+                                        throttle_duration_sec=WARN_THROTTLE_SEC)
 
     def _report_tracking_failure(self, failure):
         self._counters['tracking_failures'] += 1
@@ -693,31 +780,70 @@ def _parse_cli(argv):
     return parser.parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
+class _Interrupt:
+    """SIGINT/SIGTERM handler behind rclpy's (which shuts the context down, then calls
+    this): while starting, stop at once (KeyboardInterrupt); once spinning, do nothing --
+    the shut-down context ends the spin loop, while an exception raised here would land
+    inside whatever callback is running (the events executor then logs it as FATAL)."""
+
+    def __init__(self):
+        self.spinning = False
+
+    def __call__(self, signum, frame):
+        if not self.spinning:
+            raise KeyboardInterrupt
+
+
+def _parameter_files(argv):
+    """The ``--params-file`` paths among the ROS arguments of ``argv``."""
+    paths, in_ros_args = [], False
+    for i, arg in enumerate(argv):
+        if arg == '--ros-args':
+            in_ros_args = True
+        elif arg == '--':
+            in_ros_args = False
+        elif in_ros_args and arg == '--params-file' and i + 1 < len(argv):
+            paths.append(argv[i + 1])
+    return paths
+
+
+def _fatal(text):
+    """One FATAL log line (the exit status 2 path of an unusable configuration)."""
+    rclpy.logging.get_logger(DEFAULT_NODE_NAME).fatal(clipped(f'invalid configuration: {text}'))
 
 
 def main(args=None):
     """Entry point of ``tensegrity_node``: 0 on normal exit or Ctrl-C, 2 on a bad configuration."""
     argv = sys.argv if args is None else args
-    options = _parse_cli(argv)
+    try:
+        for path in _parameter_files(argv):
+            check_parameter_file(path)
+        options = _parse_cli(argv)
+    except ConfigError as exc:
+        _fatal(exc)
+        return 2
+    except _rclpy.RCLInvalidROSArgsError as exc:    # what rcl refuses beyond the YAML check
+        _fatal(str(exc).split(', at /')[0])
+        return 2
     node = None
     executor = None
     try:
-        # SIGINT and SIGTERM both end in KeyboardInterrupt here (rclpy's handlers, installed
-        # by rclpy.init, shut the context down first and then chain to these).
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        signal.signal(signal.SIGTERM, _interrupt)
+        # SIGINT and SIGTERM: rclpy's handlers, installed by rclpy.init, shut the context
+        # down first and then chain to this one.
+        interrupt = _Interrupt()
+        signal.signal(signal.SIGINT, interrupt)
+        signal.signal(signal.SIGTERM, interrupt)
         rclpy.init(args=argv)
         node = TensegrityNode()
         executor = _make_executor(options.executor)
         executor.add_node(node)
+        interrupt.spinning = True
         # spin_once in a loop rather than spin(): the events executor's spin() does not
         # return on a shutdown from the SIGINT/SIGTERM handler, spin_once does.
         while rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
     except ConfigurationError as exc:
-        rclpy.logging.get_logger(DEFAULT_NODE_NAME).fatal(f'invalid configuration: {exc}')
+        _fatal(exc)
         return 2
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

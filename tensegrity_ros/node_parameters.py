@@ -46,13 +46,17 @@ STRING_ARRAY = Parameter.Type.STRING_ARRAY
 #: ROS parameter type of a type name of the module parameter table.
 ROS_TYPES = {'double': DOUBLE, 'double_array': DOUBLE_ARRAY}
 
+#: Slowest markers rate other than 0 (off): a slower one is a typo (5e-324 would give a
+#: timer period that cannot be represented).
+MIN_MARKERS_RATE = 0.01
+
 #: Node-wide parameters: (name, default, type, description, constraints, range, read_only).
 NODE_PARAMETERS = (
     ('publish_rate', 50.0, DOUBLE,
      'Rate (Hz) of the joint_states timer; also the segment rate of speed-limited motion and '
      'the highest rate of equilibrium updates.', '1..1000 Hz', (1.0, 1000.0), False),
-    ('markers_rate', 10.0, DOUBLE, 'Rate (Hz) of the markers topic; 0 = off.', '0..100 Hz',
-     (0.0, 100.0), False),
+    ('markers_rate', 10.0, DOUBLE, 'Rate (Hz) of the markers topic; 0 = off.',
+     f'0 (off) or {MIN_MARKERS_RATE:g}..100 Hz', (0.0, 100.0), False),
     ('diagnostics_rate', 1.0, DOUBLE, 'Rate (Hz) of /diagnostics.', '0.1..100 Hz',
      (0.1, 100.0), False),
     ('frame_id', 'tensegrity_base', STRING,
@@ -89,4 +93,8 @@ def check_node_values(values):
     """Why the node-wide parameter values are refused, or '' if they are fine."""
     if not values['frame_id']:
         return 'frame_id must not be empty'
+    rate = values['markers_rate']
+    if rate != 0.0 and not MIN_MARKERS_RATE <= rate <= 100.0:
+        return (f'markers_rate must be 0 (off) or {MIN_MARKERS_RATE:g}..100 Hz (a period of '
+                f'at most {1 / MIN_MARKERS_RATE:g} s), got {rate!r}')
     return ''

@@ -103,14 +103,21 @@ def _pair(path, key, value):
     return tuple(_number(path, key, v) for v in value)
 
 
-def _select_node(path, doc, node):
+def _node_entries(path, doc):
+    """The node entries (name -> mapping with ``ros__parameters``) of a parameter file."""
     if not isinstance(doc, dict) or not doc:
         raise ConfigError(f'{path}: not a ROS 2 parameter file (expected a mapping '
-                          f'"<node name>: {{ros__parameters: ...}}")')
+                          f'"<node name>: {{ros__parameters: ...}}", got '
+                          f'{type(doc).__name__})')
     entries = {k: v for k, v in doc.items()
                if isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)}
     if not entries:
         raise ConfigError(f'{path}: no "<node name>: ros__parameters:" entry')
+    return entries
+
+
+def _select_node(path, doc, node):
+    entries = _node_entries(path, doc)
     if node is not None:
         for key in (node, '/' + node.lstrip('/'), node.lstrip('/')):
             if key in entries:
@@ -128,12 +135,12 @@ def _select_node(path, doc, node):
                       f'choose one with --node')
 
 
-def load_stack_config(path, node=None):
-    """The :class:`StackConfig` of a node parameter file; :class:`ConfigError` if unusable."""
+def _read_yaml(path):
+    """The YAML document of ``path``; :class:`ConfigError` (one line) if unreadable or invalid."""
     import yaml
     try:
         with open(path, encoding='utf-8') as f:
-            doc = yaml.safe_load(f)
+            return yaml.safe_load(f)
     except OSError as exc:
         raise ConfigError(f'cannot read {path}: {exc.strerror or exc}') from None
     except yaml.YAMLError as exc:
@@ -141,7 +148,20 @@ def load_stack_config(path, node=None):
         at = f' (line {where.line + 1})' if where is not None else ''
         problem = getattr(exc, 'problem', None) or type(exc).__name__
         raise ConfigError(f'{path}: invalid YAML{at}: {problem}') from None
-    key, params = _select_node(path, doc, node)
+
+
+def check_parameter_file(path):
+    """Refuse (:class:`ConfigError`) a ROS 2 parameter file the node cannot start from:
+    unreadable, invalid YAML, or not a mapping of node entries with ``ros__parameters``.
+
+    The node checks its ``--params-file`` arguments with this before rcl parses them, so
+    that a broken file is one clear FATAL line rather than an rcl traceback."""
+    _node_entries(path, _read_yaml(path))
+
+
+def load_stack_config(path, node=None):
+    """The :class:`StackConfig` of a node parameter file; :class:`ConfigError` if unusable."""
+    key, params = _select_node(path, _read_yaml(path), node)
     flat = _flatten(params)
     names = flat.pop('modules', ['m0'])
     if isinstance(names, str) or not isinstance(names, (list, tuple)) or not names:

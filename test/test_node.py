@@ -414,7 +414,10 @@ def test_small_steps_cross_the_branch_point_too(harness):
     targets = [round(0.5 - 0.02 * i, 10) for i in range(1, 21)]     # 0.48 ... 0.10
     for rho in targets:
         h.rho_pub.publish(Float64(data=rho))
-    h.spin_until(lambda: h.joint_states[-1].position[0] == targets[-1], what='rho 0.1')
+    # jumps and joint_states are two topics: wait for both (the jump may come with the
+    # last command, when the earlier ones were coalesced)
+    h.spin_until(lambda: h.joint_states[-1].position[0] == targets[-1] and h.jumps,
+                 what='rho 0.1 and the jump')
     assert len(h.jumps) == 1
     jump = values(h.jumps[0])
     assert jump['kind'] == 'branch_point'

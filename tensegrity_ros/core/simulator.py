@@ -204,10 +204,9 @@ class Simulator:
         """
         if not targets:
             return Outcome()
-        for index, rho in targets.items():
-            refusal = self._rho_refusal(index, rho)
-            if refusal is not None:
-                return refusal
+        refusal = self.rhos_refusal(targets)
+        if refusal is not None:
+            return refusal
         warnings = tuple(w for w in (self._jump_ahead(i, rho, cause)
                                      for i, rho in targets.items()) if w is not None)
         if not any(self._slots[i].limits.max_rho_rate > 0.0 for i in targets):
@@ -224,16 +223,32 @@ class Simulator:
 
     def set_force(self, index, node, force, now_ns, cause=None):
         """Force (fx, fy) at node ``'a3'`` or ``'a4'`` of a module (N, base frame)."""
+        refusal = self.force_refusal(index, node, force)
+        if refusal is not None:
+            return refusal
+        changes = dict(zip(FORCE_FIELDS[node], (float(v) for v in force)))
+        return self.set_parameters({index: changes}, now_ns, cause or f'force_{node}')
+
+    def rhos_refusal(self, targets):
+        """What :meth:`command_rhos` would refuse in ``targets`` {index: rho} (a refused
+        :class:`Outcome`), or None; changes nothing."""
+        for index, rho in targets.items():
+            refusal = self._rho_refusal(index, rho)
+            if refusal is not None:
+                return refusal
+        return None
+
+    def force_refusal(self, index, node, force):
+        """What :meth:`set_force` would refuse (not finite, beyond the supported
+        magnitudes), or None; changes nothing."""
         fx, fy = (float(v) for v in force)
-        cause = cause or f'force_{node}'
         if not (math.isfinite(fx) and math.isfinite(fy)):
             return ev.refused(ev.NON_FINITE, f'({fx!r}, {fy!r}) is not finite')
-        changes = dict(zip(FORCE_FIELDS[node], (fx, fy)))
         try:
-            self.modules[index].with_(**changes)
-        except InvalidParameterError as exc:         # beyond the supported magnitudes
+            self.modules[index].with_(**dict(zip(FORCE_FIELDS[node], (fx, fy))))
+        except InvalidParameterError as exc:
             return ev.refused(ev.OUT_OF_RANGE, str(exc))
-        return self.set_parameters({index: changes}, now_ns, cause)
+        return None
 
     def set_parameters(self, changes, now_ns, cause):
         """Change module parameters {module index: {field: value}} (any

@@ -56,6 +56,9 @@ MODULE_PARAMETERS = (
      'Actuator speed limit (m/s). 0 = no limit: a command is one straight path. '
      'Otherwise the actuator moves toward the latest target at this speed, one tracked '
      'segment per timer tick (publish_rate) and per command.', '>= 0', (0.0, 100.0)),
+    ('damping', 0.01, 'double', SETTING,
+     'Viscous damping at each rod pivot (N m s/rad), used when dynamics is true (must be '
+     '> 0 then: without it the rods never come to rest); ignored otherwise.', '>= 0', None),
     ('warn_margin', 0.05, 'double', SETTING,
      'equilibrium is WARN (near a jump) when the stability margin (smallest Hessian '
      'eigenvalue, J/rad^2) is below warn_margin * min(ka, kb, kc) * L1 * L2.', '0..1',
@@ -136,7 +139,8 @@ def check_module_values(m, get):
         if not (math.isfinite(v) and v > 0.0):
             return f'{m}.{key} must be finite and > 0, got {v!r}'
     for key, meaning in (('ka', '0.0 = use k'), ('kb', '0.0 = use k'),
-                         ('kc', '0.0 = use k'), ('m1', 'kg'), ('m2', 'kg')):
+                         ('kc', '0.0 = use k'), ('m1', 'kg'), ('m2', 'kg'),
+                         ('damping', 'N m s/rad')):
         v = get(key)
         if not (math.isfinite(v) and v >= 0.0):
             return f'{m}.{key} must be finite and >= 0 ({meaning}), got {v!r}'
@@ -155,4 +159,15 @@ def check_module_values(m, get):
         initial_params(get)
     except InvalidParameterError as exc:
         return f'{m}: {exc}'
+    return ''
+
+
+def check_dynamics_values(m, get):
+    """Why module ``m`` cannot move in the dynamics mode, or '' if it can: the rods need
+    masses (their inertia), the pivots damping (to come to rest), the actuator a speed."""
+    for key, unit in (('m1', 'kg'), ('m2', 'kg'), ('damping', 'N m s/rad'),
+                      ('max_rho_rate', 'm/s')):
+        v = get(key)
+        if not (math.isfinite(v) and v > 0.0):
+            return f'{m}.{key} must be > 0 ({unit}) when dynamics is true, got {v!r}'
     return ''

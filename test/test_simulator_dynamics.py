@@ -4,8 +4,8 @@ same profile), commands during the transient act on the moving rods, the state c
 no verified equilibrium while the rods move, and bad input changes nothing."""
 import math
 
-import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 from tensegrity_ros.core import ModuleParams, simulate_snap
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
@@ -118,3 +118,23 @@ def test_a_load_change_moves_the_rods_from_where_they_are():
     static.set_force(0, 'a3', (0.0, 4.0), 0)
     assert [eq.theta1, eq.theta2] == pytest.approx(
         [static.state.theta1, static.state.theta2], abs=1e-9)
+
+
+@settings(max_examples=8, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(st.integers(1, 20), st.floats(0.6, 1.0)), min_size=1, max_size=4))
+def test_whatever_the_commands_no_moving_state_is_claimed_stable_and_it_ends_at_rest(steps):
+    """Commands at random times (ticks of 50 ms) to random targets across the fold."""
+    sim = make(damping=0.5)
+    now = 0
+    for ticks, rho in steps:
+        assert sim.command_rho(0, rho, now).accepted
+        for _ in range(ticks):
+            now += TICK_NS
+            for jump in sim.advance(now).of_type(Jump):
+                assert jump.dynamics is not None and jump.dynamics['settled']
+            assert not (sim.moving and (sim.stable or sim.status(0).level == 'ok'))
+    run(sim, now, now + 30 * 10**9)
+    params, eq = sim.module(0)
+    assert not sim.moving and sim.stable and params.rho == steps[-1][1]
+    assert sim.live(0).theta1 == eq.theta1

@@ -60,6 +60,26 @@ def test_a_fold_crossing_publishes_the_snap_and_lands_as_the_core_simulation(har
     assert tuple(h.joint_states[-1].velocity) == (0.0, 0.0, 0.0)
 
 
+def test_a_command_during_the_transient_turns_the_actuator_where_it_is(harness):
+    h = harness(dynamics_overrides()).ready()
+    h.rho_pub.publish(h.rho_pub.msg_type(data=RHO1))
+    h.spin_until(lambda: max(abs(v) for v in h.joint_states[-1].velocity[1:]) > 1.0,
+                 what='the rods snapping')
+    n = len(h.joint_states)
+    h.rho_pub.publish(h.rho_pub.msg_type(data=0.8))
+    h.spin_until(lambda: h.jumps, timeout=60, what='the jump once the rods rest')
+    h.spin_until(lambda: h.stable[-1].data, what='stable again at rest')
+    jump = values(h.jumps[-1])
+    assert float(jump['to_theta1']) > 0.0 and h.state()[0] == 0.8     # landed up, at 0.8
+    # rho ran continuously at the speed limit: no step at the reversal
+    stream = h.joint_states[n - 1:]
+    for a, b in zip(stream, stream[1:]):
+        dt = (b.header.stamp.sec - a.header.stamp.sec) + 1e-9 * (
+            b.header.stamp.nanosec - a.header.stamp.nanosec)
+        assert abs(b.position[0] - a.position[0]) <= RATE * dt + 1e-12
+    assert min(m.velocity[0] for m in stream) == -RATE
+
+
 def test_the_quasi_static_default_has_no_velocities_and_no_dynamic_figures(harness):
     h = harness({'m0.force_a3': [0.0, 5.0], 'm0.force_a4': [0.0, 5.0],
                  'm0.rho_initial': RHO0, 'm0.initial_theta': [-1.0, -1.0]}).ready()

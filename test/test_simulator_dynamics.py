@@ -4,6 +4,7 @@ same profile), commands during the transient act on the moving rods, the state c
 no verified equilibrium while the rods move, and bad input changes nothing."""
 import math
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
@@ -39,13 +40,18 @@ def test_a_fold_crossing_reports_the_jump_with_the_one_shot_figures():
     ref = simulate_snap(FIG8A, 0.9, RATE, DAMPING, LOWER)
     sim = make()
     assert sim.command_rho(0, 0.9, 0).accepted
-    seen = {'speed': 0.0, 'claimed_stable': False}
+    seen = {'speed': 0.0, 'claimed_stable': False, 'nodes_follow_the_rods': True}
 
     def during(s):
         if s.moving:
             live = s.live(0)
             seen['speed'] = max(seen['speed'], abs(live.theta1_dot), abs(live.theta2_dot))
             seen['claimed_stable'] |= s.stable or s.status(0).level == 'ok'
+            a3 = s.module_nodes(0)[2]          # A3 = L1 (cos theta1, sin theta1), L1 = 1
+            seen['nodes_follow_the_rods'] &= bool(np.allclose(
+                a3, [math.cos(live.theta1), math.sin(live.theta1)], atol=1e-12))
+            seen['nodes_follow_the_rods'] &= s.head()[0][0] == pytest.approx(
+                0.5 * (a3[0] + s.module_nodes(0)[3][0]))
 
     [jump], _ = run(sim, 0, 30 * 10**9, during)
     figures = jump.dynamics
@@ -57,6 +63,7 @@ def test_a_fold_crossing_reports_the_jump_with_the_one_shot_figures():
     final = ref.summary['final']
     assert jump.to_theta[0] == pytest.approx([final['theta1'], final['theta2']], abs=1e-6)
     assert seen['speed'] > 1.0 and not seen['claimed_stable']
+    assert seen['nodes_follow_the_rods']
     # at rest: a verified stable equilibrium at the target, as the quasi-static mode holds
     params, eq = sim.module(0)
     assert params.rho == 0.9 and sim.stable and not sim.moving

@@ -22,6 +22,8 @@ import numpy as np
 
 from . import events as ev
 from .events import Outcome
+from .mechanisms import head_of
+from .module import node_positions
 from .moving_module import MovingModule
 from .simulator import DEFINITENESS_TOL, SOLVER_ERRORS, Simulator
 from .transient import SAME_LANDING, wrap
@@ -87,6 +89,17 @@ class DynamicSimulator(Simulator):
         theta, rate = m.theta, m.theta_dot
         return LiveState(m.rho, m.rho_dot, float(theta[0]), float(theta[1]),
                          float(rate[0]), float(rate[1]), m.actuator_force)
+
+    def module_nodes(self, index):
+        """A1..A4 (4, 2) now: of the moving rods, or of the verified rest state."""
+        if not self.moving:
+            return super().module_nodes(index)
+        m = self._moving
+        return node_positions(m.params.with_(rho=m.rho), m.theta)
+
+    def head(self):
+        """((x, y), angle) of the top chord A4 -> A3 now (moving or at rest)."""
+        return head_of(self.module_nodes(0)) if self.moving else super().head()
 
     def target(self, index):
         return self._moving.target if self.moving else None

@@ -110,11 +110,9 @@ class DynamicSimulator(Simulator):
         status = super().status(index)
         if not self.moving:
             return status
-        live = self.live(index)
         return dataclasses.replace(status, level='warn', message=(
-            f'in motion (rho={live.rho:.6g} m, |theta\'| up to '
-            f'{max(abs(live.theta1_dot), abs(live.theta2_dot)):.3g} rad/s): not a verified '
-            f'equilibrium; figures of the last rest state at rho={status.params.rho:.6g} m'))
+            f'in motion toward rho={self._moving.target:.6g} m: not a verified equilibrium; '
+            f'figures of the last rest state at rho={status.params.rho:.6g} m'))
 
     def limits_refusal(self, index, rho_min, rho_max):
         refusal = super().limits_refusal(index, rho_min, rho_max)

@@ -35,8 +35,10 @@ MODULE_PARAMETERS = (
     ('kc', 0.0, 'double', PHYSICAL, 'Stiffness of spring c = A3A4 (N/m); 0.0 = use k.',
      '>= 0', None),
     ('m1', 0.0, 'double', PHYSICAL,
-     'Mass of rod A1A3 (kg); its weight acts along -y of the base frame.', '>= 0', None),
-    ('m2', 0.0, 'double', PHYSICAL, 'Mass of rod A2A4 (kg).', '>= 0', None),
+     'Mass of rod A1A3 (kg); its weight acts along -y of the base frame; its inertia '
+     'when dynamics is true.', '>= 0 (> 0 when dynamics is true)', None),
+    ('m2', 0.0, 'double', PHYSICAL, 'Mass of rod A2A4 (kg).', '>= 0 (> 0 when dynamics is true)',
+     None),
     ('force_a3', [0.0, 0.0], 'double_array', FORCE,
      'Force [fx, fy] at A3 (N, base frame; fy > 0 pulls up) at start-up and on reset; '
      'setting it at runtime applies it at once, tracked like a force_a3 message.',
@@ -55,7 +57,8 @@ MODULE_PARAMETERS = (
     ('max_rho_rate', 0.0, 'double', SETTING,
      'Actuator speed limit (m/s). 0 = no limit: a command is one straight path. '
      'Otherwise the actuator moves toward the latest target at this speed, one tracked '
-     'segment per timer tick (publish_rate) and per command.', '>= 0', (0.0, 100.0)),
+     'segment per timer tick (publish_rate) and per command. With dynamics true: the '
+     'kinematic actuator speed.', '>= 0 (> 0 when dynamics is true)', (0.0, 100.0)),
     ('damping', 0.01, 'double', SETTING,
      'Viscous damping at each rod pivot (N m s/rad), used when dynamics is true (must be '
      '> 0 then: without it the rods never come to rest); ignored otherwise.', '>= 0', None),

@@ -110,5 +110,8 @@ def test_runtime_sets_that_would_stop_the_dynamics_are_refused(harness):
         assert not result.successful and result.reason, name
     [result] = h.call(h.params.set_parameters([Parameter('m0.damping', value=0.5)]),
                       'damping').results
-    assert result.successful and h.node.simulator._damping == 0.5
+    assert result.successful and h.node.simulator.damping == 0.5
     assert math.isclose(h.node.get_parameter('m0.damping').value, 0.5)
+    # bad input at rest: dropped and counted, the state kept (as in the quasi-static mode)
+    h.rejected('rejected_non_finite', lambda: h.rho_pub.publish(
+        h.rho_pub.msg_type(data=math.nan)))

@@ -75,6 +75,11 @@ class DynamicSimulator(Simulator):
         return self._moving.moving
 
     @property
+    def damping(self):
+        """Pivot damping in use (N m s/rad)."""
+        return self._moving.damping
+
+    @property
     def stable(self):
         """False while the rods move: no verified equilibrium is claimed then."""
         return super().stable and not self.moving

@@ -145,3 +145,19 @@ def test_whatever_the_commands_no_moving_state_is_claimed_stable_and_it_ends_at_
     params, eq = sim.module(0)
     assert not sim.moving and sim.stable and params.rho == steps[-1][1]
     assert sim.live(0).theta1 == eq.theta1
+
+
+def test_heavy_damping_lands_where_the_quasi_static_simulator_lands():
+    """The overdamped limit (DESIGN.md section 9): same jump, same landing as the tracker."""
+    sim = make(damping=5.0)
+    sim.command_rho(0, 0.9, 0)
+    [jump], _ = run(sim, 0, 60 * 10**9)
+    static = Simulator([FIG8A], [LOWER], [ModuleLimits(0.05, 1.95)])    # one path
+    [static_jump] = static.command_rho(0, 0.9, 0).of_type(Jump)
+    assert (jump.kind, jump.modules[0].rho) == (static_jump.kind, static_jump.modules[0].rho)
+    # the quasi-static to_theta is the landing at the fold's rho; the dynamic one is the
+    # rest state at the target: compare both simulators' states at the target
+    assert jump.to_theta[0] == pytest.approx(static.state.theta, abs=1e-9)
+    assert sim.state.theta == pytest.approx(static.state.theta, abs=1e-9)
+    assert not jump.dynamics['lands_elsewhere']
+    assert jump.dynamics['onset_rho'] > static_jump.modules[0].rho     # inertia delays it

@@ -5,15 +5,20 @@ held until settled, against track_module on the same path (which the simulation 
 runs, for its prediction beside the dynamic figures).  Then the neck simulator on the
 same one-module problem (node coordinates, ratio vs the module simulator) and on 2 and 3
 modules, and the real-time factor of a MovingModule driven in 10 ms ticks (simulated
-seconds per wall-clock second: above 1 a node could integrate live).
+seconds per wall-clock second: above 1 a node could integrate live); last the node's
+dynamics mode, a DynamicSimulator in 20 ms ticks (publish_rate 50 Hz) through the same
+snap, side by side with the bare MovingModule in the same ticks (the ratio is the
+simulator's bookkeeping: status, the verified rest state, the jump beside the tracker).
 
     python benchmarks/bench_snap.py
 """
 import time
 
 from tensegrity_ros.core import ModuleParams, settle, simulate_snap, track_module
+from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.moving_module import MovingModule
 from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
+from tensegrity_ros.core.simulator import ModuleLimits
 from tensegrity_ros.core.stack import Stack
 
 
@@ -40,6 +45,7 @@ def main():
               f'{len(snap.solution.ts) - 1} solver steps, settle_time {s["settle_time"]:.3g} s')
     neck_vs_module(p)
     real_time_factor(p)
+    dynamics_mode_vs_moving_module(p)
 
 
 def neck_vs_module(p):
@@ -66,6 +72,27 @@ def real_time_factor(p):
     wall = time.perf_counter() - t0
     print(f'MovingModule, 10 ms ticks through the fig. 8a snap: 16 s simulated in '
           f'{wall:.2f} s wall, real-time factor {16.0 / wall:.1f}')
+
+
+def dynamics_mode_vs_moving_module(p, ticks=800):
+    def bare():
+        live = MovingModule(p, [-1.0, -1.0], damping=0.05, max_rate=0.1)
+        live.command(0.9, 0.0)
+        for k in range(1, ticks + 1):
+            live.advance(k * 0.02)
+
+    def simulator():
+        sim = DynamicSimulator([p], [[-1.0, -1.0]], [ModuleLimits(0.05, 1.95, 0.1)],
+                               damping=[0.05])
+        sim.command_rho(0, 0.9, 0)
+        for k in range(1, ticks + 1):
+            sim.advance(k * 20_000_000)
+            sim.live(0)
+
+    wall_bare, wall_sim = best_of(bare, 2), best_of(simulator, 2)
+    print(f'dynamics mode, {ticks} ticks of 20 ms (16 s simulated): DynamicSimulator '
+          f'{wall_sim:.2f} s wall (real-time factor {ticks * 0.02 / wall_sim:.1f}), bare '
+          f'MovingModule {wall_bare:.2f} s, ratio {wall_sim / wall_bare:.2f}')
 
 
 if __name__ == '__main__':

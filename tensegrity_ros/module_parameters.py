@@ -36,8 +36,10 @@ MODULE_PARAMETERS = (
     ('kc', 0.0, 'double', PHYSICAL, 'Stiffness of spring c = A3A4 (N/m); 0.0 = use k.',
      '>= 0', None),
     ('m1', 0.0, 'double', PHYSICAL,
-     'Mass of rod A1A3 (kg); its weight acts along -y of the base frame.', '>= 0', None),
-    ('m2', 0.0, 'double', PHYSICAL, 'Mass of rod A2A4 (kg).', '>= 0', None),
+     'Mass of rod A1A3 (kg); its weight acts along -y of the base frame; its inertia '
+     'when dynamics is true.', '>= 0 (> 0 when dynamics is true)', None),
+    ('m2', 0.0, 'double', PHYSICAL, 'Mass of rod A2A4 (kg).', '>= 0 (> 0 when dynamics is true)',
+     None),
     ('force_a3', [0.0, 0.0], 'double_array', FORCE,
      'Force [fx, fy] at A3 (N, base frame; fy > 0 pulls up) at start-up and on reset; '
      'setting it at runtime applies it at once, tracked like a force_a3 message.',
@@ -56,7 +58,11 @@ MODULE_PARAMETERS = (
     ('max_rho_rate', 0.0, 'double', SETTING,
      'Actuator speed limit (m/s). 0 = no limit: a command is one straight path. '
      'Otherwise the actuator moves toward the latest target at this speed, one tracked '
-     'segment per timer tick (publish_rate) and per command.', '>= 0', (0.0, 100.0)),
+     'segment per timer tick (publish_rate) and per command. With dynamics true: the '
+     'kinematic actuator speed.', '>= 0 (> 0 when dynamics is true)', (0.0, 100.0)),
+    ('damping', 0.01, 'double', SETTING,
+     'Viscous damping at each rod pivot (N m s/rad), used when dynamics is true (must be '
+     '> 0 then: without it the rods never come to rest); ignored otherwise.', '>= 0', None),
     ('warn_margin', 0.05, 'double', SETTING,
      'equilibrium is WARN (near a jump) when the stability margin (smallest Hessian '
      'eigenvalue, J/rad^2) is below warn_margin * min(ka, kb, kc) * L1 * L2.', '0..1',
@@ -137,7 +143,8 @@ def check_module_values(m, get):
         if not (math.isfinite(v) and v > 0.0):
             return f'{m}.{key} must be finite and > 0, got {v!r}'
     for key, meaning in (('ka', '0.0 = use k'), ('kb', '0.0 = use k'),
-                         ('kc', '0.0 = use k'), ('m1', 'kg'), ('m2', 'kg')):
+                         ('kc', '0.0 = use k'), ('m1', 'kg'), ('m2', 'kg'),
+                         ('damping', 'N m s/rad')):
         v = get(key)
         if not (math.isfinite(v) and v >= 0.0):
             return f'{m}.{key} must be finite and >= 0 ({meaning}), got {v!r}'
@@ -158,4 +165,15 @@ def check_module_values(m, get):
             check_supported(module_params(get, rho, get('force_a3'), get('force_a4')))
     except InvalidParameterError as exc:
         return f'{m}: {exc}'
+    return ''
+
+
+def check_dynamics_values(m, get):
+    """Why module ``m`` cannot move in the dynamics mode, or '' if it can: the rods need
+    masses (their inertia), the pivots damping (to come to rest), the actuator a speed."""
+    for key, unit in (('m1', 'kg'), ('m2', 'kg'), ('damping', 'N m s/rad'),
+                      ('max_rho_rate', 'm/s')):
+        v = get(key)
+        if not (math.isfinite(v) and v > 0.0):
+            return f'{m}.{key} must be > 0 ({unit}) when dynamics is true, got {v!r}'
     return ''

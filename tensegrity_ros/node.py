@@ -55,6 +55,7 @@ from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.params_file import ConfigError, check_parameter_file
 from tensegrity_ros.core.command_coalescing import LatestCommands, force_key, target_key
 from tensegrity_ros.core.events import Jump, JumpAhead, TrackingFailure
+from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.simulator import Simulator
 from tensegrity_ros.core.stack import Stack
 
@@ -146,6 +147,7 @@ class TensegrityNode(Node):
 
         self._names = self._declare_modules()
         self._declare_parameters()
+        self._dynamics = self.get_parameter('dynamics').value
         self._warn_unknown_overrides()
         self._sim = self._start_simulator()
         self._published_revision = None     # simulator revision of the last statuses
@@ -153,7 +155,7 @@ class TensegrityNode(Node):
         self._markers = [conv.ModuleMarkers(m) for m in self._names]
         self._head = conv.HeadPose()
         self._rho_joints = {f'{m}_rho': i for i, m in enumerate(self._names)}
-        self._js = conv.JointStateBuffer(self._names)
+        self._js = conv.JointStateBuffer(self._names, velocity=self._dynamics)
         self._create_interfaces()
         self._name_checks = NAME_CHECKS
         self._name_timer = self.create_timer(NAME_CHECK_PERIOD_SEC,
@@ -289,7 +291,7 @@ class TensegrityNode(Node):
                     ParameterException) as exc:
                 raise ConfigurationError(f'parameter {name}: {exc}') from None
         values = self._current_values()
-        reason = params.check_node_values(values) or next(
+        reason = params.check_node_values(values, self._names) or next(
             (r for r in (params.check_module_values(m, params.module_getter(m, values))
                          for m in self._names) if r), '')
         if reason:
@@ -311,6 +313,10 @@ class TensegrityNode(Node):
         values = self._current_values()
         limits = [params.module_limits(params.module_getter(m, values)) for m in self._names]
         try:
+            if self._dynamics:
+                return DynamicSimulator(modules, thetas, limits, names=self._names,
+                                        damping=[params.module_getter(m, values)('damping')
+                                                 for m in self._names])
             return Simulator(modules, thetas, limits, names=self._names)
         except ValueError as exc:
             raise ConfigurationError(
@@ -373,7 +379,7 @@ class TensegrityNode(Node):
             if p.type_ == Parameter.Type.NOT_SET:
                 return f'{p.name} cannot be unset'
             values[p.name] = p.value
-        reason = params.check_node_values(values)
+        reason = params.check_node_values(values, self._names)
         if reason:
             return reason
         for i in self._affected_modules(parameters):
@@ -415,6 +421,8 @@ class TensegrityNode(Node):
                 m = self._names[i]
                 get = params.module_getter(m, values)
                 self._report(self._sim.set_limits(i, params.module_limits(get), now))
+                if self._dynamics and 'damping' in keys:
+                    self._report(self._sim.set_damping(i, get('damping'), now))
                 moving = [k for k in keys if params.kind_of(k) in (params.PHYSICAL,
                                                                     params.FORCE)]
                 if moving:
@@ -648,8 +656,13 @@ class TensegrityNode(Node):
         """Publish the live state, stamped ``now_ns`` (the time it holds for) or now."""
         js = self._js
         for i in range(len(self._names)):
-            p, eq = self._sim.module(i)
-            js.set_module(i, p.rho, eq.theta1, eq.theta2, eq.actuator_force)
+            if self._dynamics:
+                live = self._sim.live(i)
+                js.set_module(i, live.rho, live.theta1, live.theta2, live.actuator_force)
+                js.set_velocity(i, live.rho_dot, live.theta1_dot, live.theta2_dot)
+            else:
+                p, eq = self._sim.module(i)
+                js.set_module(i, p.rho, eq.theta1, eq.theta2, eq.actuator_force)
         self._js_pub.publish(js.stamped(self._now_ns() if now_ns is None else now_ns))
 
     def _publish_statuses(self):

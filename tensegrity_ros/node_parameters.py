@@ -13,15 +13,15 @@ from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.parameter import Parameter
 
 from tensegrity_ros.module_parameters import (
-    FORCE, INITIAL, LIMIT, MODULE_PARAMETERS, PHYSICAL, SETTING, check_module_values,
-    design_changes, initial_params, kind_of, module_getter, module_limits, module_params)
+    FORCE, INITIAL, LIMIT, MODULE_PARAMETERS, PHYSICAL, SETTING, check_dynamics_values,
+    check_module_values, design_changes, initial_params, kind_of, module_getter, module_limits, module_params)
 
 __all__ = [
-    'MAX_MODULES', 'DOUBLE', 'DOUBLE_ARRAY', 'STRING', 'STRING_ARRAY', 'NODE_PARAMETERS',
+    'MAX_MODULES', 'BOOL', 'DOUBLE', 'DOUBLE_ARRAY', 'STRING', 'STRING_ARRAY', 'NODE_PARAMETERS',
     'descriptor', 'declarations', 'parameter_types', 'check_node_values',
     # per-module parameters (module_parameters), for the node
     'FORCE', 'INITIAL', 'LIMIT', 'MODULE_PARAMETERS', 'PHYSICAL', 'SETTING',
-    'check_module_values', 'design_changes', 'initial_params', 'kind_of', 'module_getter',
+    'check_dynamics_values', 'check_module_values', 'design_changes', 'initial_params', 'kind_of', 'module_getter',
     'module_limits', 'module_params',
 ]
 
@@ -39,6 +39,7 @@ def descriptor(description, *, type_, constraints='', read_only=False, range_=No
     return d
 
 
+BOOL = Parameter.Type.BOOL
 DOUBLE = Parameter.Type.DOUBLE
 DOUBLE_ARRAY = Parameter.Type.DOUBLE_ARRAY
 STRING = Parameter.Type.STRING
@@ -63,6 +64,12 @@ NODE_PARAMETERS = (
      'Frame of the markers and head_pose: the base frame of the bottom module (origin A1, '
      'x along A1->A2, y up).',
      'non-empty', None, False),
+    ('dynamics', False, BOOL,
+     'false: quasi-static (the state jumps to the end of each tracked path). true: the rods '
+     'move with their inertia, integrated in real time at publish_rate (one module only; '
+     'needs <m>.m1, m2, damping, max_rho_rate > 0). Read-only: switching in the middle of a '
+     'transient has no verified state to start the other mode from.', 'one module',
+     None, True),
 )
 _NODE_SPEC = {p[0]: p for p in NODE_PARAMETERS}
 
@@ -89,8 +96,16 @@ def parameter_types(names):
     return types
 
 
-def check_node_values(values):
-    """Why the node-wide parameter values are refused, or '' if they are fine."""
+def check_node_values(values, modules=('m0',)):
+    """Why the node-wide parameter values are refused, or '' if they are fine (with
+    ``dynamics`` true: also the modules' dynamics values)."""
+    if values['dynamics']:
+        if len(modules) != 1:
+            return (f'dynamics: true simulates one module, {len(modules)} modules given (the '
+                    f'live dynamics of a neck is not built yet)')
+        reason = check_dynamics_values(modules[0], module_getter(modules[0], values))
+        if reason:
+            return reason
     if not values['frame_id']:
         return 'frame_id must not be empty'
     rate = values['markers_rate']

@@ -60,7 +60,7 @@ class JointStateBuffer:
     publication: no message or array allocation per command.
     """
 
-    def __init__(self, modules):
+    def __init__(self, modules, velocity=False):
         self.msg = JointState()
         names = []
         for m in modules:
@@ -70,6 +70,9 @@ class JointStateBuffer:
         self.msg.effort = array.array('d', [0.0] * len(names))
         self._position = self.msg.position
         self._effort = self.msg.effort
+        if velocity:                # dynamics mode: rho', theta1', theta2'
+            self.msg.velocity = array.array('d', [0.0] * len(names))
+            self._velocity = self.msg.velocity
         self._stamp = self.msg.header.stamp
 
     def set_module(self, index: int, rho: float, theta1: float, theta2: float,
@@ -80,6 +83,13 @@ class JointStateBuffer:
         position[base + 1] = theta1
         position[base + 2] = theta2
         self._effort[base] = actuator_force
+
+    def set_velocity(self, index: int, rho_dot: float, theta1_dot: float, theta2_dot: float):
+        base = 3 * index
+        velocity = self._velocity
+        velocity[base] = rho_dot
+        velocity[base + 1] = theta1_dot
+        velocity[base + 2] = theta2_dot
 
     def stamped(self, nanoseconds: int) -> JointState:
         self._stamp.sec, self._stamp.nanosec = divmod(nanoseconds, 1_000_000_000)
@@ -198,8 +208,28 @@ def jump_status(*, name, hardware_id, modules, jump):
             for i, m in enumerate(modules):
                 pairs.append((f'{side}_{m}_theta1', float(theta[i][0])))
                 pairs.append((f'{side}_{m}_theta2', float(theta[i][1])))
+    if jump.dynamics is not None:
+        pairs.extend(dynamic_figures(jump.dynamics))
     status.values = key_values(pairs)
     return status
+
+
+#: The snap figures a ``jumps`` message of the dynamics mode adds (msg_docs/jumps.md).
+DYNAMIC_KEYS = ('onset_rho', 'onset_time', 'peak_speed', 'peak_actuator_force', 'overshoot',
+                'settle_time', 'lands_elsewhere')
+
+
+def dynamic_figures(figures):
+    """(key, value) pairs of a snap's figures: DYNAMIC_KEYS, ``final_theta1/2``,
+    ``final_speed`` and the quasi-static landing ``quasi_static_theta1/2``."""
+    pairs = [(key, figures[key]) for key in DYNAMIC_KEYS]
+    final = figures['final']
+    pairs += [('final_theta1', final['theta1']), ('final_theta2', final['theta2']),
+              ('final_speed', final['speed'])]
+    predicted = figures['quasi_static_final'] or {'theta1': None, 'theta2': None}
+    pairs += [('quasi_static_theta1', predicted['theta1']),
+              ('quasi_static_theta2', predicted['theta2'])]
+    return pairs
 
 
 class HeadPose:

@@ -30,7 +30,8 @@ class Jump:
     module i's critical actuator length); ``from_theta`` (N x 2) the critical configuration,
     ``to_theta`` (N x 2) where it landed.  ``module`` is the module whose command moved
     the mechanism there, ``cause`` names the command, ``count`` is the running jump number
-    since the start or the last reset.
+    since the start or the last reset.  ``dynamics`` (dynamics mode only, else None): the
+    snap's figures once the rods came to rest (:class:`~.dynamic_simulator.DynamicSimulator`).
     """
 
     kind: str
@@ -42,6 +43,7 @@ class Jump:
     module: int
     cause: str
     count: int
+    dynamics: dict | None = None
 
 
 @dataclass(frozen=True)

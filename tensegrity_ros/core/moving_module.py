@@ -22,6 +22,12 @@ from .tracking import settle
 from .transient import RhoRamp, SolverSettings, wrap
 
 
+def _checked_rate(max_rate):
+    if not isinstance(max_rate, (int, float)) or not 0.0 < max_rate < math.inf:
+        raise InvalidParameterError(f'max_rate must be positive and finite, got {max_rate!r}')
+    return float(max_rate)
+
+
 class MovingModule:
     """A module with rod masses ``params.m1``, ``m2``, pivot ``damping`` (N m s/rad) and an
     actuator speed limit ``max_rate`` (m/s), at rest at time ``t`` in the stable
@@ -29,10 +35,7 @@ class MovingModule:
 
     def __init__(self, params: ModuleParams, theta_guess, damping: float, max_rate: float,
                  t: float = 0.0, settings: SolverSettings = SolverSettings()):
-        if not isinstance(max_rate, (int, float)) or not 0.0 < max_rate < math.inf:
-            raise InvalidParameterError(f'max_rate must be positive and finite, '
-                                        f'got {max_rate!r}')
-        self.params, self.max_rate, self.settings = params, float(max_rate), settings
+        self.params, self.max_rate, self.settings = params, _checked_rate(max_rate), settings
         self.damping = transient.checked_damping(damping)
         start = settle(params, theta_guess)
         self.t = float(t)
@@ -56,6 +59,11 @@ class MovingModule:
         """Force (N) on A2 along +x now, rod 2's inertia included."""
         return float(self._system.actuator_force(np.array([self.t - self._t0]),
                                                  self.y[None, :])[0])
+
+    @property
+    def rho_dot(self):
+        """Actuator speed (m/s) now: the speed limit towards the target, 0 when there."""
+        return float(self._system.ramp.rho_dot(self.t - self._t0))
 
     @property
     def moving(self):
@@ -86,6 +94,9 @@ class MovingModule:
         """Integrate up to time ``t``; returns the figures of every snap that came to rest."""
         if not t >= self.t:
             raise InvalidParameterError(f'time must not go back: at {self.t!r}, got {t!r}')
+        if self._at_rest:               # settled for good (see ModuleEquations.settled)
+            self.t = float(t)
+            return []
         reports = []
         while self.t < t:
             ramp_end = self._t0 + self._system.ramp.duration
@@ -99,12 +110,34 @@ class MovingModule:
                 reports.append(report)
         return reports
 
+    def change(self, t, params=None, max_rate=None, damping=None):
+        """New design or loads (``params``; its rho is ignored), speed limit or damping from
+        time ``t`` on (after advancing to ``t``): the rods move on from where they are.
+
+        Returns what :meth:`advance` returned on the way.  Bad values (e.g. a mass of 0)
+        raise InvalidParameterError and change nothing.
+        """
+        reports = self.advance(t)
+        old = self.params, self.max_rate, self.damping, self._at_rest
+        try:
+            if params is not None:
+                self.params, self._at_rest = params, False
+            if max_rate is not None:
+                self.max_rate = _checked_rate(max_rate)
+            if damping is not None:
+                self.damping, self._at_rest = transient.checked_damping(damping), False
+            self._segment(self.t)
+        except InvalidParameterError:
+            self.params, self.max_rate, self.damping, self._at_rest = old
+            raise
+        return reports
+
     # -- internals -----------------------------------------------------------------------
     def _segment(self, t0):
         """Equations for rho running from its current value to the target from t0 on."""
-        self._t0 = t0
-        self._system = ModuleEquations(self.params.with_(rho=self.rho),
-                               RhoRamp(self.rho, self.target, self.max_rate), self.damping)
+        system = ModuleEquations(self.params.with_(rho=self.rho),
+                                 RhoRamp(self.rho, self.target, self.max_rate), self.damping)
+        self._t0, self._system = t0, system      # only once the equations could be built
         if self._record is not None:
             self._record['segments'].append((t0, self._system))
 

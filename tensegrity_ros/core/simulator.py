@@ -258,6 +258,16 @@ class Simulator:
         motion of those modules is first advanced to ``now_ns``."""
         if not changes:
             return Outcome()
+        refusal = self.parameters_refusal(changes)
+        if refusal is not None:
+            return refusal
+        advanced = [self._advance_module(i, now_ns) for i in changes]
+        ends = {i: self.modules[i].with_(**fields) for i, fields in changes.items()}
+        return ev.combined(advanced + [self._move(ends, cause, next(iter(changes)))])
+
+    def parameters_refusal(self, changes):
+        """What :meth:`set_parameters` would refuse in ``changes`` (a refused
+        :class:`Outcome`), or None; changes nothing."""
         try:
             for index, fields in changes.items():
                 if 'rho' in fields:
@@ -265,9 +275,7 @@ class Simulator:
                 self.modules[index].with_(**fields)
         except (InvalidParameterError, TypeError) as exc:
             return ev.refused(ev.PARAMETER_VALUE, str(exc))
-        advanced = [self._advance_module(i, now_ns) for i in changes]
-        ends = {i: self.modules[i].with_(**fields) for i, fields in changes.items()}
-        return ev.combined(advanced + [self._move(ends, cause, next(iter(changes)))])
+        return None
 
     def set_limits(self, index, limits, now_ns):
         """New :class:`ModuleLimits` of a module (pending motion is first advanced to

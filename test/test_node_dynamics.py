@@ -1,0 +1,117 @@
+"""The node's dynamics mode, driven through its topics: a fold crossing publishes a jump
+with the snap's figures and lands where the core's one-shot simulation of the same
+profile lands; joint_states carry the rods' velocities during the transient; stable
+claims nothing while the rods move; bad configurations are refused with a reason.
+Spun until a condition holds (no sleeps)."""
+import math
+
+import pytest
+from diagnostic_msgs.msg import DiagnosticStatus
+from rclpy.parameter import Parameter
+
+from tensegrity_ros.core import ModuleParams, simulate_snap
+from tensegrity_ros.node import ConfigurationError, TensegrityNode
+
+from test_node import harness, ros, values  # noqa: F401  (fixtures)
+
+pytestmark = pytest.mark.ros
+
+RHO0, RHO1, RATE, DAMPING, MASS = 0.85, 0.9, 0.1, 0.2, 0.05
+
+
+def dynamics_overrides(**extra):
+    """Fig. 8a's lower branch just below its fold (rho 0.85; fold near 0.88), 0.05 kg rods."""
+    params = {'dynamics': True, 'm0.force_a3': [0.0, 5.0], 'm0.force_a4': [0.0, 5.0],
+              'm0.rho_initial': RHO0, 'm0.initial_theta': [-1.0, -1.0], 'm0.m1': MASS,
+              'm0.m2': MASS, 'm0.damping': DAMPING, 'm0.max_rho_rate': RATE}
+    params.update(extra)
+    return params
+
+
+def test_a_fold_crossing_publishes_the_snap_and_lands_as_the_core_simulation(harness):
+    h = harness(dynamics_overrides()).ready()
+    assert h.stable[-1].data and len(h.joint_states[-1].velocity) == 3
+    h.rho_pub.publish(h.rho_pub.msg_type(data=RHO1))
+    h.spin_until(lambda: h.jumps, timeout=60, what='the jump once the rods rest')
+    jump = values(h.jumps[-1])
+    # the same profile (rate RATE from the command's arrival, then hold) in one shot: the
+    # ticks only cut the integration into pieces, so the figures agree to the solver's
+    # tolerance, not to a tick
+    ref = simulate_snap(ModuleParams.paper(RHO0, F3=5.0, F4=5.0).with_(m1=MASS, m2=MASS),
+                        RHO1, RATE, DAMPING, (-1.0, -1.0))
+    for key in ('onset_rho', 'peak_speed', 'peak_actuator_force', 'overshoot'):
+        assert float(jump[key]) == pytest.approx(ref.summary[key], rel=1e-5), key
+    assert float(jump['settle_time']) == pytest.approx(ref.summary['settle_time'], rel=1e-3)
+    final = ref.summary['final']
+    for key in ('theta1', 'theta2'):
+        assert float(jump[f'to_{key}']) == pytest.approx(final[key], abs=1e-6)
+        assert float(jump[f'final_{key}']) == pytest.approx(final[key], abs=1e-6)
+    assert jump['kind'] == 'fold' and jump['lands_elsewhere'] == 'false'
+    assert float(jump['rho']) == pytest.approx(ref.static_fold_rho, abs=1e-9)
+    # during the transient: the rods' rates on joint_states, and no stable claim
+    fastest = max(max(abs(v) for v in m.velocity[1:]) for m in h.joint_states)
+    assert fastest > 1.0
+    assert False in [m.data for m in h.stable]
+    h.spin_until(lambda: h.stable[-1].data, what='stable again at rest')
+    moving = [s for s in h.equilibrium if 'in motion' in s.message]
+    assert moving and all(s.level == DiagnosticStatus.WARN for s in moving)
+    rho, theta1, theta2, _ = h.state()
+    assert (rho, theta1) == (RHO1, pytest.approx(final['theta1'], abs=1e-6))
+    assert tuple(h.joint_states[-1].velocity) == (0.0, 0.0, 0.0)
+
+
+def test_a_command_during_the_transient_turns_the_actuator_where_it_is(harness):
+    h = harness(dynamics_overrides()).ready()
+    h.rho_pub.publish(h.rho_pub.msg_type(data=RHO1))
+    h.spin_until(lambda: max(abs(v) for v in h.joint_states[-1].velocity[1:]) > 1.0,
+                 what='the rods snapping')
+    n = len(h.joint_states)
+    h.rho_pub.publish(h.rho_pub.msg_type(data=0.8))
+    h.spin_until(lambda: h.jumps, timeout=60, what='the jump once the rods rest')
+    h.spin_until(lambda: h.stable[-1].data, what='stable again at rest')
+    jump = values(h.jumps[-1])
+    assert float(jump['to_theta1']) > 0.0 and h.state()[0] == 0.8     # landed up, at 0.8
+    # rho ran continuously at the speed limit: no step at the reversal
+    stream = h.joint_states[n - 1:]
+    for a, b in zip(stream, stream[1:]):
+        dt = (b.header.stamp.sec - a.header.stamp.sec) + 1e-9 * (
+            b.header.stamp.nanosec - a.header.stamp.nanosec)
+        assert abs(b.position[0] - a.position[0]) <= RATE * dt + 1e-12
+    assert min(m.velocity[0] for m in stream) == -RATE
+
+
+def test_the_quasi_static_default_has_no_velocities_and_no_dynamic_figures(harness):
+    h = harness({'m0.force_a3': [0.0, 5.0], 'm0.force_a4': [0.0, 5.0],
+                 'm0.rho_initial': RHO0, 'm0.initial_theta': [-1.0, -1.0]}).ready()
+    h.command_rho(RHO1)
+    h.spin_until(lambda: h.jumps, what='the jump')
+    assert 'peak_speed' not in values(h.jumps[-1])
+    assert len(h.joint_states[-1].velocity) == 0
+    assert h.node.describe_parameter('dynamics').read_only
+
+
+@pytest.mark.parametrize('overrides, words', [
+    ({'m0.m1': 0.0}, 'm0.m1 must be > 0'),
+    ({'m0.damping': 0.0}, 'm0.damping must be > 0'),
+    ({'m0.max_rho_rate': 0.0}, 'm0.max_rho_rate must be > 0'),
+    ({'modules': ['m0', 'm1']}, 'one module, 2 modules given'),
+])
+def test_a_dynamics_mode_it_cannot_run_is_refused_at_startup(ros, overrides, words):
+    with pytest.raises(ConfigurationError, match=words):
+        TensegrityNode(parameter_overrides=[Parameter(k, value=v) for k, v in
+                                            dynamics_overrides(**overrides).items()])
+
+
+def test_runtime_sets_that_would_stop_the_dynamics_are_refused(harness):
+    h = harness(dynamics_overrides()).ready()
+    for name, value in (('m0.damping', 0.0), ('m0.m2', 0.0), ('m0.max_rho_rate', 0.0),
+                        ('dynamics', False)):
+        [result] = h.call(h.params.set_parameters([Parameter(name, value=value)]), name).results
+        assert not result.successful and result.reason, name
+    [result] = h.call(h.params.set_parameters([Parameter('m0.damping', value=0.5)]),
+                      'damping').results
+    assert result.successful and h.node.simulator.damping == 0.5
+    assert math.isclose(h.node.get_parameter('m0.damping').value, 0.5)
+    # bad input at rest: dropped and counted, the state kept (as in the quasi-static mode)
+    h.rejected('rejected_non_finite', lambda: h.rho_pub.publish(
+        h.rho_pub.msg_type(data=math.nan)))

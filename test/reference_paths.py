@@ -514,9 +514,14 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
                 raise Stalled(f'stalled on a saddle at s={s!r}')
             return _push_off(system, *stalled, s, push_offs)
         target = 0.1 * system.force(y, s)
-        if target < 1e-14 and system.stability(y, s)[0][0] > 0:
-            return Rest(y)              # at rest to rounding: nothing moves it further
-        if elapsed > MAX_FLOW_TIME or target < 1e-14:
+        if target < 1e-14 and elapsed == 0.0 and anchor is None:   # at rest to rounding
+            values, modes = system.stability(y, s)
+            if values[0] > 0:
+                return Rest(y)
+            if push_offs <= 0:
+                raise Stalled(f'stalled on a saddle at s={s!r}')
+            return _push_off(system, y, modes[:, 0], s, push_offs)
+        if elapsed > MAX_FLOW_TIME:
             raise NoRest(f'no certified rest at s={s!r} from {y0} after t={elapsed:g}')
         base = y if anchor is None else anchor
         atol = 1e-14 if anchor is None else 1e-10 * float(np.max(np.abs(y - anchor)))
@@ -581,7 +586,7 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
         except Stalled:                 # the branch has become a saddle: a jump
             rest = None
         if rest is None:
-            jump = _bisect_jump(system, s, y, s_new, None)
+            jump = _bisect_jump(system, s, y, s_new, None, stalled=True)
             if jump is None:
                 raise NoRest(f'the branch became a saddle near s={s_new!r} but no jump found')
             path.jumps.append(jump)
@@ -606,7 +611,7 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
     return path
 
 
-def _bisect_jump(system, s_a, y_a, s_b, rest_b):
+def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
     """Bisect [s_a, s_b] on whether the branch's minimum still continues next to the last
     rest (see ``_nearby_minimum``); then the overdamped flow from the last rest with the
     parameters at the bracket's end decides: a jump only if it lands far away."""
@@ -625,6 +630,10 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b):
         # landing is taken a little further on, where lambda is not tiny
         s_land = min(1.0, s_b + LANDING_OFFSET) if s_b >= s_a else s_b
         rest_b = flow_to_rest(system, y_a, s_land)
+    if angle_distance(rest_b.state, y_a) <= JUMP_DISTANCE and stalled:
+        # the step stalled on a saddle (a branch point) but the bisection ended within
+        # rounding of it: the landing is taken a little further on
+        rest_b = flow_to_rest(system, y_a, min(1.0, s_b + LANDING_OFFSET))
     if angle_distance(rest_b.state, y_a) <= JUMP_DISTANCE:
         return None
     s_star, solved = critical_point_in(system, y_a, s_a, s_b)

@@ -587,7 +587,7 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
             rest = None
         if rest is None:
             jump = _bisect_jump(system, s, y, s_new, None, stalled=True)
-            if jump is None:
+            if not isinstance(jump, ReferenceJump):
                 raise NoRest(f'the branch became a saddle near s={s_new!r} but no jump found')
             path.jumps.append(jump)
             s, y, slope, ds = jump.s_after, jump.landing, None, FIRST_STEP
@@ -600,10 +600,13 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
             continue
         if suspicious:
             jump = _bisect_jump(system, s, y, s_new, rest)
-            if jump is not None:
+            if isinstance(jump, ReferenceJump):
                 path.jumps.append(jump)
                 s, y, slope, ds = jump.s_after, jump.landing, None, FIRST_STEP
                 continue
+            # no jump: the branch continues to the bracket's end; step on from there
+            s, y, slope, ds = jump[0], jump[1], None, MIN_STEP
+            continue
         slope = None if suspicious else motion / (s_new - s)
         s, y = s_new, rest.state
         ds = min(MAX_STEP, 2.0 * ds) if motion < 0.25 * MAX_STEP_MOTION else ds
@@ -614,7 +617,8 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
 def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
     """Bisect [s_a, s_b] on whether the branch's minimum still continues next to the last
     rest (see ``_nearby_minimum``); then the overdamped flow from the last rest with the
-    parameters at the bracket's end decides: a jump only if it lands far away."""
+    parameters at the bracket's end decides: a jump only if it lands far away.
+    Returns the :class:`ReferenceJump`, or (s, state) where the branch continues."""
     y_b = None if rest_b is None else rest_b.state
     while s_b - s_a > JUMP_BRACKET * max(1.0, abs(s_a)):
         s_m = 0.5 * (s_a + s_b)
@@ -635,7 +639,7 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
         # rounding of it: the landing is taken a little further on
         rest_b = flow_to_rest(system, y_a, min(1.0, s_b + LANDING_OFFSET))
     if angle_distance(rest_b.state, y_a) <= JUMP_DISTANCE:
-        return None
+        return s_b, rest_b.state          # continuous after all: where to step on from
     s_star, solved = critical_point_in(system, y_a, s_a, s_b)
     kind = classify(system, y_a, s_a)
     return ReferenceJump(s=s_star, s_before=s_a, s_after=s_b, departure=y_a,

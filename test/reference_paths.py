@@ -59,6 +59,9 @@ JUMP_DISTANCE = 1e-5
 PUSH_OFF = 1e-7
 #: Longest flow (in units of the stiffest relaxation time) before the reference gives up.
 MAX_FLOW_TIME = 1e18
+#: Budgets: flow legs per rest, steps per path (the reference says so rather than hang).
+MAX_LEGS = 200
+MAX_STEPS = 3000
 
 FIELDS = ('rho', 'L1', 'L2', 'ka', 'kb', 'kc', 'f3x', 'f3y', 'f4x', 'f4y', 'm1', 'm2')
 
@@ -504,7 +507,7 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
     a nearly degenerate saddle is resolved, not damped away by large implicit steps."""
     y = np.array(y0, dtype=float)
     chunk, elapsed = 1.0, 0.0
-    while True:
+    for _ in range(MAX_LEGS):
         star = system.certified_rest(y, s)
         if star is not None:
             return Rest(star)
@@ -535,6 +538,7 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
         elapsed += float(sol.t[-1])
         if sol.status != 1:
             chunk *= 4.0
+    raise NoRest(f'no certified rest at s={s!r} from {y0} within {MAX_LEGS} legs')
 
 
 def _push_off(system, star, mode, s, push_offs):
@@ -581,6 +585,8 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
     while s < s1:
         s_new = min(s1, s + ds)
         path.steps += 1
+        if path.steps > MAX_STEPS:
+            raise NoRest(f'the reference gave up after {MAX_STEPS} steps, at s={s!r}')
         try:
             rest = flow_to_rest(system, y, s_new, push_offs=0)
         except Stalled:                 # the branch has become a saddle: a jump

@@ -59,6 +59,9 @@ JUMP_DISTANCE = 1e-5
 PUSH_OFF = 1e-7
 #: Longest flow (in units of the stiffest relaxation time) before the reference gives up.
 MAX_FLOW_TIME = 1e18
+#: Budgets: flow legs per rest, steps per path (the reference says so rather than hang).
+MAX_LEGS = 200
+MAX_STEPS = 3000
 
 FIELDS = ('rho', 'L1', 'L2', 'ka', 'kb', 'kc', 'f3x', 'f3y', 'f4x', 'f4y', 'm1', 'm2')
 
@@ -504,7 +507,7 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
     a nearly degenerate saddle is resolved, not damped away by large implicit steps."""
     y = np.array(y0, dtype=float)
     chunk, elapsed = 1.0, 0.0
-    while True:
+    for _ in range(MAX_LEGS):
         star = system.certified_rest(y, s)
         if star is not None:
             return Rest(star)
@@ -514,9 +517,14 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
                 raise Stalled(f'stalled on a saddle at s={s!r}')
             return _push_off(system, *stalled, s, push_offs)
         target = 0.1 * system.force(y, s)
-        if target < 1e-14 and system.stability(y, s)[0][0] > 0:
-            return Rest(y)              # at rest to rounding: nothing moves it further
-        if elapsed > MAX_FLOW_TIME or target < 1e-14:
+        if target < 1e-14 and elapsed == 0.0 and anchor is None:   # at rest to rounding
+            values, modes = system.stability(y, s)
+            if values[0] > 0:
+                return Rest(y)
+            if push_offs <= 0:
+                raise Stalled(f'stalled on a saddle at s={s!r}')
+            return _push_off(system, y, modes[:, 0], s, push_offs)
+        if elapsed > MAX_FLOW_TIME:
             raise NoRest(f'no certified rest at s={s!r} from {y0} after t={elapsed:g}')
         base = y if anchor is None else anchor
         atol = 1e-14 if anchor is None else 1e-10 * float(np.max(np.abs(y - anchor)))
@@ -530,6 +538,7 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
         elapsed += float(sol.t[-1])
         if sol.status != 1:
             chunk *= 4.0
+    raise NoRest(f'no certified rest at s={s!r} from {y0} within {MAX_LEGS} legs')
 
 
 def _push_off(system, star, mode, s, push_offs):
@@ -576,13 +585,15 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
     while s < s1:
         s_new = min(s1, s + ds)
         path.steps += 1
+        if path.steps > MAX_STEPS:
+            raise NoRest(f'the reference gave up after {MAX_STEPS} steps, at s={s!r}')
         try:
             rest = flow_to_rest(system, y, s_new, push_offs=0)
         except Stalled:                 # the branch has become a saddle: a jump
             rest = None
         if rest is None:
-            jump = _bisect_jump(system, s, y, s_new, None)
-            if jump is None:
+            jump = _bisect_jump(system, s, y, s_new, None, stalled=True)
+            if not isinstance(jump, ReferenceJump):
                 raise NoRest(f'the branch became a saddle near s={s_new!r} but no jump found')
             path.jumps.append(jump)
             s, y, slope, ds = jump.s_after, jump.landing, None, FIRST_STEP
@@ -595,10 +606,13 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
             continue
         if suspicious:
             jump = _bisect_jump(system, s, y, s_new, rest)
-            if jump is not None:
+            if isinstance(jump, ReferenceJump):
                 path.jumps.append(jump)
                 s, y, slope, ds = jump.s_after, jump.landing, None, FIRST_STEP
                 continue
+            # no jump: the branch continues to the bracket's end; step on from there
+            s, y, slope, ds = jump[0], jump[1], None, MIN_STEP
+            continue
         slope = None if suspicious else motion / (s_new - s)
         s, y = s_new, rest.state
         ds = min(MAX_STEP, 2.0 * ds) if motion < 0.25 * MAX_STEP_MOTION else ds
@@ -606,10 +620,11 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
     return path
 
 
-def _bisect_jump(system, s_a, y_a, s_b, rest_b):
+def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
     """Bisect [s_a, s_b] on whether the branch's minimum still continues next to the last
     rest (see ``_nearby_minimum``); then the overdamped flow from the last rest with the
-    parameters at the bracket's end decides: a jump only if it lands far away."""
+    parameters at the bracket's end decides: a jump only if it lands far away.
+    Returns the :class:`ReferenceJump`, or (s, state) where the branch continues."""
     y_b = None if rest_b is None else rest_b.state
     while s_b - s_a > JUMP_BRACKET * max(1.0, abs(s_a)):
         s_m = 0.5 * (s_a + s_b)
@@ -625,8 +640,12 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b):
         # landing is taken a little further on, where lambda is not tiny
         s_land = min(1.0, s_b + LANDING_OFFSET) if s_b >= s_a else s_b
         rest_b = flow_to_rest(system, y_a, s_land)
+    if angle_distance(rest_b.state, y_a) <= JUMP_DISTANCE and stalled:
+        # the step stalled on a saddle (a branch point) but the bisection ended within
+        # rounding of it: the landing is taken a little further on
+        rest_b = flow_to_rest(system, y_a, min(1.0, s_b + LANDING_OFFSET))
     if angle_distance(rest_b.state, y_a) <= JUMP_DISTANCE:
-        return None
+        return s_b, rest_b.state          # continuous after all: where to step on from
     s_star, solved = critical_point_in(system, y_a, s_a, s_b)
     kind = classify(system, y_a, s_a)
     return ReferenceJump(s=s_star, s_before=s_a, s_after=s_b, departure=y_a,

@@ -17,7 +17,7 @@ def test_unloaded_module_to_rho_beyond_L_publishes_no_jump(harness):
     h.wait_status(lambda v: float(v['rho']) == 1.3)
     assert h.stable[-1].data is True
     assert h.node.counters['jumps_total'] == 0 and h.jumps == []
-    assert h.counter('tracking_failures') == 0
+    assert h.node.counters['tracking_failures'] == 0
 
 
 def test_a_load_beyond_the_supported_range_is_refused_and_the_state_kept(harness):

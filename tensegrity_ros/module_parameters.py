@@ -12,6 +12,7 @@ import math
 
 from tensegrity_ros.core import InvalidParameterError, ModuleParams
 from tensegrity_ros.core.simulator import ModuleLimits
+from tensegrity_ros.core.supported_range import check_supported
 
 # Kinds of per-module parameters: what a runtime change does.
 PHYSICAL = 'physical'    # geometry, stiffness, masses: tracked like a command
@@ -152,6 +153,8 @@ def check_module_values(m, get):
         return f'{m}.rho_initial={initial!r} must lie in [rho_min, rho_max] = [{lo!r}, {hi!r}]'
     try:
         initial_params(get)
+        for rho in (lo, hi):            # every length the actuator may reach
+            check_supported(module_params(get, rho, get('force_a3'), get('force_a4')))
     except InvalidParameterError as exc:
         return f'{m}: {exc}'
     return ''

@@ -10,22 +10,27 @@ that the smallest stability eigenvalue is predicted to at most halve and the
 state moves at most ``max_state_step``.  A step is accepted only if Newton
 contracts, lands near the prediction, the stability matrix is still positive
 definite (by eigenvalues) and the energy change matches the envelope theorem
-``dE/ds = dU/ds``.  When stability is about to be lost the event is localised
-on an extended system (fold: ``{F = 0, lambda_min = 0}``; branch point:
-``{F + beta psi = 0, lambda_min = 0, psi . F_s = 0}``), classified by whether
-the critical mode ``psi`` is orthogonal to ``F_s``, and the mechanism lands
-where an overdamped gradient flow with the parameters frozen just past the
-event takes it.
+``dE/ds = dU/ds``.  A rejected step is not an event: it is retried as a
+pseudo-arclength step (which follows a sharply turning branch, e.g. near an
+imperfect branch point, and goes round a fold), then shrunk.  An event exists
+only between two verified states of the branch where the test function
+lambda_min changes sign, or where the branch turns back in s; it is located
+there by a bracketed secant (to ~1e-12 in s) and kept only if lambda_min ~ 0.
+It is a fold where the critical mode ``psi`` is not orthogonal to ``F_s``, else
+a branch point.  The mechanism lands where an overdamped gradient flow with the
+parameters frozen just past the event takes it; where the landing closes in on
+the departure as that offset shrinks, the minimum simply goes on (no event).
+Tolerances follow the local stiffness scale, so every magnitude works.
 """
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 from scipy.integrate import LSODA
-from scipy.optimize import root
 
 FOLD = 'fold'
 BRANCH_POINT = 'branch_point'
@@ -75,8 +80,6 @@ class TrackerSettings:
     definiteness_tol: float = 1e-9
     #: Newton iterations per corrector.
     newton_iterations: int = 12
-    #: Localisation accuracy of an event in s.
-    locate_tol: float = 1e-9
     #: Below this |psi . F_s| / |F_s| the critical point is a branch point.
     branch_tol: float = 1e-6
     #: The mechanism lands with the parameters frozen this far past the event (in s,
@@ -90,6 +93,16 @@ class TrackerSettings:
     min_step: float = 1e-13
     #: Velocity evaluations one landing flow may spend before it is abandoned.
     flow_evaluations: int = 200000
+    #: Two states closer than this (weighted state norm) are the same state; also the
+    #: corrector's slack near a critical point, where rounding is amplified by 1/lambda_min.
+    same_state_tol: float = 1e-7
+    #: A located critical point must have |lambda_min| below this, relative to the scale.
+    critical_tol: float = 1e-9
+    #: An arclength step is kept only if the branch direction turns less than this
+    #: (cosine) over it: a sharper turn means the corrector reached another branch.
+    arc_alignment: float = 0.9
+    #: Wall-clock seconds one command may take before it gives up (None: no limit).
+    time_budget: float | None = None
 
 
 @dataclass(frozen=True)
@@ -125,6 +138,10 @@ class _FlowBudgetExceeded(Exception):
     """A landing flow used up its evaluation budget."""
 
 
+class _Lost(Exception):
+    """A corrector left the branch (no convergence, or converged too far away)."""
+
+
 class TrackingError(RuntimeError):
     """The start state is not a stable equilibrium and cannot be made one."""
 
@@ -152,6 +169,9 @@ class _Tracker:
         self.scale = 1.0          # stability scale, set from the start state
         self.steps = 0
         self.last_rate = None     # d lambda_min / ds over the last accepted step
+        self.base_scale = None    # the stability scale at the start
+        self.deadline = (None if settings.time_budget is None
+                         else time.perf_counter() + settings.time_budget)
         weights = getattr(problem, 'state_weights', None)
         self.weights = None if weights is None else np.asarray(weights, dtype=float)
 
@@ -160,8 +180,8 @@ class _Tracker:
         return _inf_norm(v if self.weights is None else self.weights * v)
 
     # -- verification -------------------------------------------------------
-    def residual_ok(self, y, s):
-        return _inf_norm(self.problem.residual(y, s)) <= self.settings.residual_tol * self.scale
+    def residual_ok(self, y, s, factor=1.0):
+        return _inf_norm(self.problem.residual(y, s)) <= factor * self.settings.residual_tol * self.scale
 
     def definite(self, eigenvalues):
         return eigenvalues[0] > self.settings.definiteness_tol * max(abs(eigenvalues[-1]), self.scale * 1e-3)
@@ -195,20 +215,26 @@ class _Tracker:
     def tangent(self, y, s):
         return -_solve(self.problem.jacobian(y, s), self.problem.residual_s(y, s))
 
-    def try_step(self, y, s, tangent, ds, energy0, energy_s0):
+    def energy_consistent(self, y0, s0, y1, s1):
+        """The envelope theorem: along one branch dE/ds = U_s (a jump to another breaks it)."""
+        problem = self.problem
+        energy0, energy1 = problem.energy(y0, s0), problem.energy(y1, s1)
+        energy_s0, energy_s1 = problem.energy_s(y0, s0), problem.energy_s(y1, s1)
+        ds = s1 - s0
+        expected = 0.5 * (energy_s0 + energy_s1) * ds
+        slack = 1e-9 * (abs(energy0) + abs(energy1) + self.scale) + 0.5 * abs((energy_s1 - energy_s0) * ds)
+        return abs((energy1 - energy0) - expected) <= slack
+
+    def try_step(self, y, s, tangent, ds):
         """Corrector at s + ds; returns (state, eigenvalues, reason) with reason '' if accepted."""
         s1 = s + ds
         predicted = y + ds * tangent
         y1 = self.newton(predicted, s1)
         if y1 is None:
             return None, None, 'newton'
-        if self.step_norm(y1 - predicted) > 0.5 * ds * self.step_norm(tangent) + 1e-9:
+        if self.step_norm(y1 - predicted) > 0.5 * ds * self.step_norm(tangent) + self.settings.same_state_tol:
             return None, None, 'far'
-        energy1 = self.problem.energy(y1, s1)
-        energy_s1 = self.problem.energy_s(y1, s1)
-        expected = 0.5 * (energy_s0 + energy_s1) * ds
-        slack = 1e-9 * (abs(energy0) + abs(energy1) + self.scale) + 0.5 * abs(energy_s1 - energy_s0) * ds
-        if abs((energy1 - energy0) - expected) > slack:
+        if not self.energy_consistent(y, s, y1, s1):
             return None, None, 'energy'
         eigenvalues = self.eigenvalues(y1, s1)
         if not self.definite(eigenvalues):
@@ -216,23 +242,29 @@ class _Tracker:
         return y1, eigenvalues, ''
 
     def run(self, y, s_end=1.0):
-        problem, cfg = self.problem, self.settings
+        """The main loop: natural steps; an arclength step where one is rejected; events
+        only where a test function changes sign (or the branch turns) between verified states."""
+        cfg = self.settings
         s = 0.0
         eigenvalues = self.eigenvalues(y, s)
-        self.scale = max(abs(eigenvalues[-1]), 1e-300)
-        y = self.newton(np.asarray(y, dtype=float), s)
-        if y is None:
-            raise TrackingError('the start state is not an equilibrium')
+        self.rescale(eigenvalues)
+        y = np.asarray(y, dtype=float)
+        polished = self.newton(y, s)
+        if polished is None and not self.residual_ok(y, s):   # a verified start near a
+            raise TrackingError('the start state is not an equilibrium')   # singular point
+        y = y if polished is None else polished
         eigenvalues = self.eigenvalues(y, s)
         if not self.definite(eigenvalues):
             raise TrackingError('the start state is not a stable equilibrium')
         events = []
-        ds = 1.0
-        rate = None
+        ds, rate = 1.0, None
         while s < s_end:
             self.steps += 1
             if self.steps > cfg.max_steps:
                 return self.result(y, s, eigenvalues, events, 'failed', 'too many steps')
+            if self.out_of_time():
+                return self.result(y, s, eigenvalues, events, 'failed',
+                                   f'time budget of {cfg.time_budget:g} s used up at s={s!r}')
             try:
                 tangent = self.tangent(y, s)
             except np.linalg.LinAlgError:
@@ -242,32 +274,55 @@ class _Tracker:
                 rate = self.eigenvalue_rate(y, s, tangent, eigenvalues[0])
             if rate < 0.0:
                 ds = min(ds, (1.0 - cfg.eigenvalue_shrink) * eigenvalues[0] / -rate)
-            energy0, energy_s0 = problem.energy(y, s), problem.energy_s(y, s)
-            y1, eig1, reason = self.try_step(y, s, tangent, ds, energy0, energy_s0)
+            y1, eig1, reason = self.try_step(y, s, tangent, ds)
             if not reason:
                 rate = self.last_rate = (eig1[0] - eigenvalues[0]) / ds
                 y, s, eigenvalues = y1, s + ds, eig1
+                self.rescale(eigenvalues)
                 ds *= 2.0
                 continue
-            near_event = reason == 'indefinite' or ds <= 1e-4 or eigenvalues[0] <= 1e-3 * self.scale
-            if near_event:
-                event = self.locate(y, s, tangent, min(s + ds, s_end), s_end, y1 if reason == 'indefinite' else None)
-                if event is not None:
-                    kind, s_star, y_star = event
-                    try:
-                        jump = self.land(kind, s_star, y_star, s_end)
-                    except TrackingError as error:
-                        return self.result(y, s, eigenvalues, events, 'failed', str(error))
-                    events.append(jump)
-                    y, s = jump.landing, jump.landing_s
-                    eigenvalues = self.eigenvalues(y, s)
-                    ds, rate = 1.0, None
+            found = None
+            if reason == 'indefinite':
+                found = self.crossing_on_path(y, s, tangent, s + ds)
+            if found is None:           # rejected, or no crossing on the natural path
+                arc = self.arc_step(y, s, tangent, ds)
+                if arc is not None and arc[0] == 'regular':
+                    _, y1, s1, eig1 = arc
+                    self.last_rate = (eig1[0] - eigenvalues[0]) / (s1 - s)
+                    y, s, eigenvalues, rate = y1, s1, eig1, None
+                    self.rescale(eigenvalues)
                     continue
+                if arc is not None:
+                    found = arc[1]
+            if found is not None and found[1] <= s_end:
+                try:
+                    landing, s_land, event = self.land(*found, s_end)
+                except TrackingError as error:
+                    return self.result(y, s, eigenvalues, events, 'failed', str(error))
+                if event is not None:
+                    events.append(event)
+                y, s = landing, s_land
+                eigenvalues = self.eigenvalues(y, s)
+                self.rescale(eigenvalues)
+                ds, rate = 1.0, None
+                continue
             if ds <= cfg.min_step:
                 return self.result(y, s, eigenvalues, events, 'failed',
                                    f'step size underflow at s={s!r} ({reason})')
             ds *= 0.25 if reason == 'indefinite' else 0.5
         return self.result(y, s, eigenvalues, events)
+
+    def rescale(self, eigenvalues):
+        """Tolerances follow the stiffness scale: the start's, or the local one where
+        the branch has softened (relative, so every magnitude works; never looser
+        than at the start, so a stiffening branch keeps the start's accuracy)."""
+        local = abs(float(eigenvalues[-1]))
+        if self.base_scale is None:
+            self.base_scale = max(local, 1e-300)
+        self.scale = local if 0.0 < local < self.base_scale else self.base_scale
+
+    def out_of_time(self):
+        return self.deadline is not None and time.perf_counter() > self.deadline
 
     def result(self, y, s, eigenvalues, events, status='ok', message=''):
         return Track(state=y, s=s, eigenvalues=np.asarray(eigenvalues), events=tuple(events),
@@ -283,6 +338,126 @@ class _Tracker:
         cheap = getattr(self.problem, 'eigenvalues', None)
         return cheap(y, s) if cheap is not None else self.problem.stability(y, s)[0]
 
+    def margin(self, y, s):
+        """The test function lambda_min in scale units (its root is the critical point)."""
+        return self.eigenvalues(y, s)[0] / self.scale
+
+    # -- the branch as a curve in (y, s): arclength steps ----------------------
+    def curve_tangent(self, y, s, reference=None):
+        """Unit null vector of [F_y F_s] (the branch's direction in (y, s)), oriented
+        along ``reference`` (or towards growing s); regular at folds, unlike dy/ds."""
+        matrix = np.column_stack([self.problem.jacobian(y, s), self.problem.residual_s(y, s)])
+        direction = np.linalg.svd(matrix)[2][-1]
+        along = direction @ reference if reference is not None else direction[-1]
+        return -direction if along < 0.0 else direction
+
+    def arc_point(self, y0, s0, direction, h):
+        """Pseudo-arclength corrector: the branch point on the hyperplane through
+        (y0, s0) + h direction normal to direction; ``None`` unless it converges near it."""
+        problem, n = self.problem, self.problem.size
+        z0 = np.append(y0, s0)
+        predicted = z0 + h * direction
+        z = predicted.copy()
+        matrix = np.empty((n + 1, n + 1))
+        matrix[n] = direction
+        previous = math.inf
+        for _ in range(self.settings.newton_iterations):
+            y, s = z[:n], z[n]
+            matrix[:n, :n] = problem.jacobian(y, s)
+            matrix[:n, n] = problem.residual_s(y, s)
+            rhs = np.append(problem.residual(y, s), direction @ (z - predicted))
+            try:
+                delta = np.linalg.solve(matrix, rhs)
+            except np.linalg.LinAlgError:
+                return None
+            size = _inf_norm(delta)
+            if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
+                break
+            z, previous = z - delta, size
+            if size <= 1e-14 * (1.0 + _inf_norm(z)):
+                break
+        y, s = z[:n], float(z[n])
+        # the extended system is regular at folds, so it converges to rounding level;
+        # where it does not (a singular linkage limit), the step is refused
+        if (not self.residual_ok(y, s, 1e-3)
+                or _inf_norm(z - predicted) > 0.5 * h + self.settings.same_state_tol):
+            return None
+        if not self.energy_consistent(y0, s0, y, s):
+            return None
+        return y, s
+
+    def arc_step(self, y, s, tangent, ds):
+        """One arclength step as long as the rejected natural step.
+
+        Returns ('regular', y1, s1, eigenvalues) where the branch goes on stable and
+        forward, ('event', found) where a test function changed sign on the arc
+        (found as from :meth:`critical_point`), or ``None`` if the step failed.
+        """
+        direction = self.curve_tangent(y, s)
+        h = ds * math.sqrt(1.0 + float(tangent @ tangent))
+        end = self.arc_point(y, s, direction, h)
+        if end is None:
+            return None
+        y1, s1 = end
+        direction1 = self.curve_tangent(y1, s1, direction)
+        if direction1 @ direction < self.settings.arc_alignment:
+            return None             # turned too much for one step: another branch, or too long
+        eigenvalues = self.eigenvalues(y1, s1)
+        forward = direction1[-1] > 0.0
+        if self.definite(eigenvalues) and forward and s1 > s:
+            return 'regular', y1, s1, eigenvalues
+
+        def point(hh):
+            found = self.arc_point(y, s, direction, hh)
+            if found is None:
+                raise _Lost
+            return found
+
+        if not self.definite(eigenvalues):
+            test = lambda hh: self.margin(*point(hh))                          # noqa: E731
+        else:                       # the branch turned back in s while staying stable
+            test = lambda hh: self.curve_tangent(*point(hh), direction)[-1]   # noqa: E731
+        return 'event', self.critical_point(test, point, 0.0, h, turned=True)
+
+    def crossing_on_path(self, y, s, tangent, s_bad):
+        """The critical point where lambda_min crosses zero between the verified (y, s)
+        and the verified indefinite state at s_bad (natural parametrisation)."""
+        def point(t):
+            found = self.newton(y + (t - s) * tangent, t)
+            if found is None or self.step_norm(found - y - (t - s) * tangent) > \
+                    0.5 * abs(t - s) * self.step_norm(tangent) + self.settings.same_state_tol:
+                raise _Lost
+            return found, t
+
+        return self.critical_point(lambda t: self.margin(*point(t)), point, s, s_bad, turned=False)
+
+    def critical_point(self, test, point, a, b, turned):
+        """Root of a test function bracketed by two verified states, checked to be
+        critical (lambda_min ~ 0); returns (kind, s, y, turned) or ``None``."""
+        try:
+            with np.errstate(all='ignore'):
+                a, b, test_a, test_b = _bracket(test, a, b)
+                if not test_a > 0.0:
+                    return None
+                if test_b >= 0.0:           # indefinite by the tolerance only: b is critical
+                    a, test_a = b, 0.0
+                else:
+                    a, b, test_a, test_b = _shrink_bracket(test, a, b, test_a, test_b)
+                root_at = a + (b - a) * test_a / (test_a - test_b) if test_a > 0.0 else a
+            try:
+                y_star, s_star = point(root_at)
+            except _Lost:                   # singular right at the root: its verified neighbour
+                y_star, s_star = point(a)
+                s_star = s_star + (root_at - a) * (s_star - point(b)[1]) / (a - b) if b != a else s_star
+        except (_Lost, ValueError, ZeroDivisionError, np.linalg.LinAlgError):
+            return None
+        lam, psi = self.critical(y_star, s_star)
+        if abs(lam) > self.settings.critical_tol:
+            return None
+        ratio = self.orthogonality(y_star, s_star, psi)
+        kind = FOLD if ratio > self.settings.branch_tol else BRANCH_POINT
+        return kind, s_star, y_star, turned
+
     # -- events ---------------------------------------------------------------
     def critical(self, y, s, reference=None):
         """(lambda_min / scale, psi) with psi's sign aligned to ``reference``."""
@@ -297,102 +472,74 @@ class _Tracker:
         norm = np.linalg.norm(fs)
         return abs(psi @ fs) / norm if norm > 0 else 0.0
 
-    def locate(self, y, s, tangent, s_bad, s_end, y_bad):
-        """Find the critical point ahead of (y, s); ``None`` if none before ``s_end``."""
-        _, psi = self.critical(y, s)
-        guesses = [(y, s)]
-        if y_bad is not None:
-            guesses.append((y_bad, s_bad))
-        order = ((BRANCH_POINT, FOLD) if self.orthogonality(y, s, psi) < 1e-2
-                 else (FOLD, BRANCH_POINT))
-        # The definiteness test has a tolerance, so the exact event may lie a little
-        # beyond the first step that failed it.
-        window = s_bad + 1e-6 + 0.1 * (s_bad - s)
-        for kind in order:
-            for y0, s0 in guesses:
-                found = self.solve_extended(kind, y0, s0, psi)
-                if found is None:
-                    continue
-                s_star, y_star = found
-                if not s - 1e-9 <= s_star <= window:
-                    continue
-                if s_star > s_end:
-                    return None
-                _, psi_star = self.critical(y_star, s_star, psi)
-                ratio = self.orthogonality(y_star, s_star, psi_star)
-                return (FOLD if ratio > self.settings.branch_tol else BRANCH_POINT,
-                        max(s_star, s), y_star)
-        return self.bisect(y, s, tangent, s_bad)
+    def land(self, kind, s_star, y_star, turned, s_end):
+        """Where the mechanism goes after the critical point: (state, s, event or None).
 
-    def solve_extended(self, kind, y0, s0, psi0):
-        """Newton-type solve of the fold or branch-point extended system."""
-        problem, scale = self.problem, self.scale
-        n = problem.size
-
-        def fold(z):
-            y, s = z[:n], z[n]
-            lam, _ = self.critical(y, s, psi0)
-            return np.concatenate([problem.residual(y, s) / scale, [lam]])
-
-        def branch(z):
-            y, s, beta = z[:n], z[n], z[n + 1]
-            lam, psi = self.critical(y, s, psi0)
-            fs = problem.residual_s(y, s)
-            fs_norm = np.linalg.norm(fs) or 1.0
-            return np.concatenate([(problem.residual(y, s) + beta * scale * psi) / scale,
-                                   [lam, psi @ fs / fs_norm]])
-
-        if kind == FOLD:
-            z0, fun = np.concatenate([y0, [s0]]), fold
-        else:
-            z0, fun = np.concatenate([y0, [s0, 0.0]]), branch
-        try:
-            with np.errstate(all='ignore'):
-                solution = root(fun, z0, method='hybr', options={'xtol': 1e-14})
-        except (np.linalg.LinAlgError, ValueError):
-            return None
-        z = solution.x
-        if not np.all(np.isfinite(z)):
-            return None
-        y, s = z[:n], float(z[n])
-        if _inf_norm(fun(z)) > 1e-9 or not self.residual_ok(y, s):
-            return None
-        if kind == BRANCH_POINT and abs(z[n + 1]) > 1e-8:
-            return None
-        return s, y
-
-    def bisect(self, y, s, tangent, s_bad):
-        """Fallback localisation: the largest s reachable on the stable branch, to locate_tol."""
-        good_y, good_s, bad_s = y, s, s_bad
-        while bad_s - good_s > self.settings.locate_tol:
-            mid = 0.5 * (good_s + bad_s)
-            try:
-                tangent = self.tangent(good_y, good_s)
-            except np.linalg.LinAlgError:
-                break
-            candidate = self.newton(good_y + (mid - good_s) * tangent, mid)
-            ok = candidate is not None and self.step_norm(candidate - good_y) < 10 * self.settings.max_state_step
-            if ok:
-                eig, _ = self.problem.stability(candidate, mid)
-                ok = self.definite(eig)
-            if ok:
-                good_y, good_s = candidate, mid
-            else:
-                bad_s = mid
-        _, psi = self.critical(good_y, good_s)
-        ratio = self.orthogonality(good_y, good_s, psi)
-        return (FOLD if ratio > self.settings.branch_tol else BRANCH_POINT), good_s, good_y
-
-    def land(self, kind, s_star, y_star, s_end):
-        """Freeze the parameters just past the event, step off, slide down, polish.
-
-        If "just past" lies beyond the end of the command, the landed state is
-        then followed back along its own branch to the end point.
+        The parameters are frozen just past the event; the mechanism steps off along
+        the critical mode and slides down.  Where the branch turned back at s* and
+        the landing closes in on the critical point as the offset shrinks (a minimum
+        crossing onto another branch, e.g. a supercritical pitchfork run backwards),
+        the state simply follows: no event (so no event can land on its own
+        departure).  If "just past" lies beyond the end of the command,
+        the landed state is followed back along its own branch to the end point.
         """
         problem = self.problem
-        s_land = s_star + self.landing_offset(kind, y_star, s_star)
+        offset = self.landing_offset(kind, y_star, s_star)
+        s_land = s_star + offset
         if s_land > s_end and not _admissible(problem, s_land):
             s_land = s_end
+        landing, ambiguous, s_land = self.landing_state(kind, s_star, y_star, s_land, s_end)
+        event = None if self.continuous(kind, s_star, y_star, s_land, landing, turned) else kind
+        if s_land > s_end:
+            back = _Tracker(_Segment(problem, s_land, s_end), self.settings).run(landing)
+            if back.status != 'ok' or back.events:
+                raise TrackingError(f'the landing after the {kind} at s={s_star!r} does not '
+                                    f'persist to the end of the command')
+            landing, s_land = back.state, s_end
+        if event is None:
+            return landing, s_land, None
+        return landing, s_land, Event(kind=kind, s=s_star, state=y_star, landing_s=s_land,
+                                      landing=landing, ambiguous=ambiguous)
+
+    def continuous(self, kind, s_star, y_star, s_land, landing, turned):
+        """Whether the landing is the tracked minimum going on rather than a jump.
+
+        It is when the landing is the departure itself (rounding level), or, where
+        the branch turned back at s*, when the landing closes in on the departure
+        as the offset shrinks (a jump lands a finite distance away however close
+        to s* it is frozen).  So a jump that lands on its own start cannot be made.
+        """
+        cfg = self.settings
+        distance = self.step_norm(self.canonical(landing) - self.canonical(y_star))
+        if distance <= cfg.same_state_tol:
+            return True
+        if not turned or distance >= cfg.max_state_step:
+            return False
+        try:
+            closer, _, _ = self.landing_state(kind, s_star, y_star, s_star + 0.01 * (s_land - s_star))
+        except TrackingError:
+            return False            # not shown to close in: the verified landing stands
+        return (self.step_norm(self.canonical(closer) - self.canonical(y_star))
+                <= 0.3 * distance + cfg.same_state_tol)
+
+    def landing_state(self, kind, s_star, y_star, s_land, s_end=None):
+        """Step off along the critical mode at frozen s_land and slide: (landing, ambiguous, s_land).
+
+        With ``s_end`` given, a flow that finds no minimum (it rests on saddles near
+        the fold's ghost) is retried frozen further past the event, up to 1e-3 in s.
+        """
+        while True:
+            try:
+                return (*self._land_once(kind, s_star, y_star, s_land), s_land)
+            except TrackingError:
+                further = s_star + 100.0 * (s_land - s_star)
+                if s_end is None or s_land - s_star >= 1e-3 or (
+                        further > s_end and not _admissible(self.problem, further)):
+                    raise
+                s_land = min(further, s_star + 1e-3)
+
+    def _land_once(self, kind, s_star, y_star, s_land):
+        problem = self.problem
         _, psi = self.critical(y_star, s_star)
         sides = []
         for sign in (1.0, -1.0):
@@ -411,15 +558,7 @@ class _Tracker:
         landings.sort(key=lambda y: problem.energy(y, s_land))
         ambiguous = (len(landings) == 2
                      and _inf_norm(self.canonical(landings[0]) - self.canonical(landings[1])) > 1e-6)
-        landing = landings[0]
-        if s_land > s_end:
-            back = _Tracker(_Segment(problem, s_land, s_end), self.settings).run(landing)
-            if back.status != 'ok' or back.events:
-                raise TrackingError(f'the landing after the {kind} at s={s_star!r} does not '
-                                    f'persist to the end of the command')
-            landing, s_land = back.state, s_end
-        return Event(kind=kind, s=s_star, state=y_star, landing_s=s_land,
-                     landing=landing, ambiguous=ambiguous)
+        return landings[0], ambiguous
 
     def canonical(self, y):
         return getattr(self.problem, 'canonical', lambda v: v)(y)
@@ -458,7 +597,7 @@ class _Tracker:
 
         def velocity(_t, v):
             budget[0] -= 1
-            if budget[0] < 0:
+            if budget[0] < 0 or (budget[0] % 64 == 0 and self.out_of_time()):
                 raise _FlowBudgetExceeded
             return problem.descent(v, s)
 
@@ -493,6 +632,53 @@ class _Tracker:
     def step_off_vector(self, mode):
         """``mode`` scaled to the step-off distance in the weighted state norm."""
         return self.settings.step_off * mode / max(self.step_norm(mode), 1e-300)
+
+
+def _bracket(test, a, b, tries=8):
+    """(a, b, test(a), test(b)) with test(b) < 0 where it can be reached.
+
+    b is a verified indefinite state, so lambda_min there is below a tolerance
+    but may still be positive: extend the bracket past it by the secant.
+    """
+    test_a, test_b = test(a), test(b)
+    for _ in range(tries):
+        slope = (test_a - test_b) / (b - a)
+        if test_b < 0.0 or not slope > 0.0:
+            break
+        a, test_a, b = b, test_b, b + 2.0 * test_b / slope
+        test_b = test(b)
+    return a, b, test_a, test_b
+
+
+def _shrink_bracket(test, a, b, test_a, test_b, xtol=1e-12):
+    """Narrow [a, b] (test(a) > 0 > test(b)) around the root to about xtol.
+
+    Secant estimates, each bracketed by two probes 2% of the width either side,
+    so a test function that is nearly linear there (lambda_min at a simple
+    crossing) shrinks the bracket ~25-fold per round.  Probes that cannot be
+    solved (a singular Jacobian right at the root) are skipped.
+    """
+    for _ in range(60):
+        width = b - a
+        if width <= xtol * max(1.0, abs(b)):
+            break
+        guess = a + width * test_a / (test_a - test_b)
+        nudge = 0.02 * width
+        progress = False
+        for t in sorted({min(max(guess - nudge, a + nudge), b - nudge),
+                         min(max(guess + nudge, a + nudge), b - nudge)}):
+            try:
+                value = test(t)
+            except _Lost:
+                continue
+            progress = True
+            if value > 0.0 and t > a:
+                a, test_a = t, value
+            elif value <= 0.0 and t < b:
+                b, test_b = t, value
+        if not progress:
+            break
+    return a, b, test_a, test_b
 
 
 def _admissible(problem, s):
@@ -560,10 +746,11 @@ def settle(problem: PathProblem, y0, s=0.0, settings: TrackerSettings = TrackerS
     y0 = np.array(y0, dtype=float)
     eigenvalues, modes = problem.stability(y0, s)
     tracker.scale = max(float(np.max(np.abs(eigenvalues))), 1e-300)   # any start, not only a minimum
-    landing = tracker.slide(y0, s)
-    if landing is not None:
-        return landing
     y = tracker.newton(y0, s) if tracker.residual_ok(y0, s) else None
+    if y is None or tracker.definite(tracker.eigenvalues(y, s)):
+        landing = tracker.slide(y0, s)        # not on a saddle: the flow decides alone
+        if landing is not None:
+            return landing
     candidates = []
     for sign in (1.0, -1.0):
         start = y0 if y is None else y

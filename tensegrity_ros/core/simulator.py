@@ -26,6 +26,7 @@ from .events import JumpAhead, Outcome, TrackingFailure
 from .mechanisms import make_jump, mechanism_for
 from .module import InvalidParameterError, ModuleParams
 from .start_state import start_state
+from .supported_range import check_supported
 from .tracking import ModuleJump
 
 #: A published state must have lambda_min > this * |lambda_max| (a verified minimum).
@@ -230,7 +231,7 @@ class Simulator:
             return ev.refused(ev.NON_FINITE, f'({fx!r}, {fy!r}) is not finite')
         changes = dict(zip(FORCE_FIELDS[node], (fx, fy)))
         try:
-            self.modules[index].with_(**changes)
+            check_supported(self.modules[index].with_(**changes))
         except InvalidParameterError as exc:         # beyond the supported magnitudes
             return ev.refused(ev.OUT_OF_RANGE, str(exc))
         return self.set_parameters({index: changes}, now_ns, cause)

@@ -1,0 +1,59 @@
+"""Neck tracker near its branch points with a tiny asymmetry (issue 10 item 3).
+
+The upright neck under a growing head load: N = 3 buckles continuously (a supercritical
+branch point in the perfect neck, no event at all once one module is a little
+asymmetric); N = 2 snaps (subcritical: the asymmetric neck folds next to it).  Every
+reported jump lands on a verified stable state of the stack at its load.
+"""
+import numpy as np
+import pytest
+
+from tensegrity_ros.core import BRANCH_POINT, FOLD, ModuleParams, equilibria
+from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
+
+UPRIGHT = equilibria(ModuleParams.paper(0.6)).stable[-1].theta
+
+
+def neck(n, load, first=None):
+    modules = [ModuleParams.paper(0.6) for _ in range(n - 1)]
+    modules.append(ModuleParams.paper(0.6, F3=load, F4=load))
+    if first:
+        modules[0] = modules[0].with_(**first)
+    return Stack(tuple(modules))
+
+
+def head_load_track(n, first=None):
+    start = settle_stack(neck(n, 0.0, first), np.tile(UPRIGHT, (n, 1)))
+    result = track_stack(neck(n, 0.0, first), neck(n, -40.0, first), start)
+    assert result.status == 'ok', result.message
+    for jump in result.jumps:
+        assert np.max(np.abs(jump.to_theta - jump.from_theta)) > 1e-3
+        if jump.kind == FOLD:      # a stable equilibrium at the fold's load next to the landing
+            landed = settle_stack(jump.stack, jump.to_theta)
+            assert landed.stable and np.max(np.abs(landed.theta - jump.to_theta)) < 1e-3
+    assert result.final.stable
+    return result
+
+
+def loads(result):
+    return [j.stack.modules[-1].f3y for j in result.jumps]
+
+
+@pytest.mark.parametrize('ka', [100.0000001, 99.9999999])
+def test_n3_asymmetric_neck_buckles_without_an_event(ka):
+    perfect = head_load_track(3)
+    assert [j.kind for j in perfect.jumps] == [BRANCH_POINT, FOLD]
+    imperfect = head_load_track(3, dict(ka=ka))
+    assert [j.kind for j in imperfect.jumps] == [FOLD]            # the buckled branch's fold
+    assert loads(imperfect)[0] == pytest.approx(loads(perfect)[1], abs=1e-4)
+
+
+@pytest.mark.parametrize('first', [dict(ka=100.001), dict(ka=99.999), dict(f3x=1e-4)])
+def test_n2_asymmetric_neck_folds_next_to_the_snap(first):
+    perfect = head_load_track(2)
+    assert [j.kind for j in perfect.jumps] == [BRANCH_POINT]
+    imperfect = head_load_track(2, first)
+    assert [j.kind for j in imperfect.jumps] == [FOLD]
+    assert loads(imperfect)[0] == pytest.approx(loads(perfect)[0], abs=1e-2)
+    # both land on the same far branch
+    np.testing.assert_allclose(imperfect.jumps[0].to_theta, perfect.jumps[0].to_theta, atol=1e-2)

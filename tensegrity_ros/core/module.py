@@ -11,6 +11,7 @@ at A4, which is exact for uniform rods pinned at their other end.
 from __future__ import annotations
 
 import math
+import copy
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
@@ -116,6 +117,16 @@ class ModuleParams:
     def with_(self, **changes):
         """A copy with some parameters changed (validated)."""
         return replace(self, **changes)
+
+    def with_rho(self, rho):
+        """A copy with actuator length ``rho``: only rho is validated (the other values
+        were when ``self`` was built), so an actuator command costs a copy, not a
+        re-validation of every field.  Same result and errors as ``with_(rho=rho)``."""
+        if not (isinstance(rho, float) and MIN_MAGNITUDE <= rho <= MAX_MAGNITUDE):
+            return self.with_(rho=rho)          # the full check (and its usual error)
+        moved = copy.copy(self)
+        object.__setattr__(moved, 'rho', float(rho))
+        return moved
 
 
 def _angles(theta):

@@ -153,8 +153,6 @@ class _Topology:
         self.chord_rods = self.element_rods[len(springs):]
         self.n_springs = len(springs)
         self.mobility = rods[_FIXED:].T @ rods[_FIXED:]   # moving nodes shared by two rods
-        # elements, then moving nodes, as rod sums (complex, for products with rod vectors)
-        self.element_and_node_rods = np.vstack([self.element_rods, rods[_FIXED:]]).astype(complex)
         self.identity = np.eye(self.n_rods)
         self.angle_mask = np.concatenate([np.ones(self.n_rods), np.zeros(self.n_chords)])
         # loads: complex node forces = (forces + g * weights) @ parameters
@@ -485,57 +483,6 @@ class StackPath:
         zt = z.T
         return zt @ p.hessian(self) @ z, zt @ p.metric(self) @ z, z, p
 
-    def lowest_mode(self, y, s):
-        """(eigenvalues, w): the stability eigenvalues and the rod-angle mode w of the
-        smallest (w^T M w = 1 in the Cartesian metric M, tangent to the constraints)."""
-        a, b, z, _ = self._reduced(y, s)
-        values, vectors, info = _dsygv(a, b, jobz='V')
-        if info != 0:
-            raise np.linalg.LinAlgError(f'reduced eigenproblem failed (dsygv info={info})')
-        return values, z @ vectors[:, 0]
-
-    def eigenvalue_rate(self, y, s, tangent, lam, w):
-        """d lambda / ds along the branch direction (tangent, 1) of the simple eigenvalue
-        ``lam`` with mode ``w`` (from :meth:`lowest_mode` at (y, s)), analytically.
-
-        First-order perturbation of the constrained eigenproblem: with (H - lam M) w =
-        Jc^T nu, d lambda = w^T (dH - lam dM) w - 2 nu^T dJc w, where d is the
-        derivative along the branch (rod angles, multipliers and parameters all move).
-        The quadratic forms are sums over elements and nodes of the mode's rod
-        velocities v_r w_r (w^T H w = sum W_e |E (v w)|_e^2 - sum w_r^2 Re(v_r* F_r)),
-        so no matrix derivative is built: one complex product with the element and
-        node tables, then vector sums."""
-        p = self.point(y, s)
-        top, rate = self.topology, self._rate_values
-        nr, ns, v = top.n_rods, top.n_springs, p.rods
-        d_rods_s, d_diff_s = self._rates(p)
-        spin = 1j * v * tangent[:nr]
-        d_rods = spin + d_rods_s
-        ww_v = w * w * v.conj()
-        columns = np.empty((nr, 4), dtype=complex)
-        columns[:, 0], columns[:, 1], columns[:, 2], columns[:, 3] = v * w, d_rods * w, spin, ww_v
-        rows = top.element_and_node_rods @ columns
-        ne = len(p.diff)
-        a, da = rows[:ne, 0], rows[:ne, 1]               # element vectors of the mode
-        b, db = rows[ne:, 0], rows[ne:, 1]               # moving-node vectors of the mode
-        d_diff = rows[:ne, 2] + d_diff_s
-        d_weights = rate.weights.copy()
-        d_weights[ns:] = tangent[nr:] * self.f_ref_per_l_ref
-        d_force_e = d_weights * p.diff + p.weights * d_diff     # F = E^T (W diff) - loads
-        value = (float(d_weights @ (a.real * a.real + a.imag * a.imag))
-                 + 2.0 * float(p.weights @ (a.conj() * da).real)
-                 - float((w * w) @ (d_rods.conj() * p.force).real)
-                 - float((d_force_e @ rows[:ne, 3]).real) + float((ww_v @ rate.rod_loads).real)
-                 - 2.0 * lam * float((b.conj() * db).real.sum()))
-        if not top.n_chords:
-            return value
-        jc = p.constraint_jacobian(self)
-        residual = p.hessian(self) @ w - lam * (p.metric(self) @ w)
-        nu = _solve(jc @ jc.T, jc @ residual)
-        chords, d_chords = p.diff[ns:], d_diff[ns:]
-        d_jc_w = (d_chords.conj() * a[ns:] + chords.conj() * da[ns:]).imag * -self.inv_l_ref
-        return value - 2.0 * float(nu @ d_jc_w)
-
     def eigenvalues(self, y, s):
         a, b, _, _ = self._reduced(y, s)
         values, _, info = _dsygv(a, b, jobz='N')
@@ -703,9 +650,6 @@ class StackEquilibrium:
     #: The stack parameter vector (bytes) this state was verified at, so that tracking
     #: from it can reuse ``eigenvalues``.
     parameters: bytes = field(default=None, repr=False, compare=False)
-    #: The rod-angle mode of the smallest eigenvalue (:meth:`StackPath.lowest_mode`),
-    #: so that tracking from this state gets d lambda_min / ds without an eigen solve.
-    mode: np.ndarray = field(default=None, repr=False, compare=False)
 
     @property
     def stable(self):
@@ -717,21 +661,19 @@ class StackEquilibrium:
         return float(self.eigenvalues[0])
 
 
-def _record(path, y, s, eigenvalues=None, energy=None, residual=None, mode=None):
-    if eigenvalues is None:
-        eigenvalues, mode = path.lowest_mode(y, s)
+def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
     nodes = path.nodes(y, s)
     top = path.topology
     a3, a4 = nodes[top.a3(path.n - 1)], nodes[top.a4(path.n - 1)]
     head = a3 - a4
     return StackEquilibrium(
         theta=path.angles(y, s), nodes=nodes,
-        eigenvalues=eigenvalues,
+        eigenvalues=path.eigenvalues(y, s) if eigenvalues is None else eigenvalues,
         energy=path.energy(y, s) if energy is None else energy, actuator_forces=path.actuator_forces(y, s),
         residual=float(np.max(np.abs(path.residual(y, s)))) if residual is None else residual,
         state=np.array(y),
         head_position=0.5 * (a3 + a4), head_angle=math.atan2(head[1], head[0]),
-        parameters=path.parameter_vector(s).tobytes(), mode=mode)
+        parameters=path.parameter_vector(s).tobytes())
 
 
 def stack_equilibrium_at(stack: Stack, state) -> StackEquilibrium:
@@ -795,17 +737,6 @@ def _newton(path, y, s, tol, iterations):
     return (y, residual) if residual <= tol else (None, residual)
 
 
-def _lowest_eigenvalue_rate(path, y, tangent, eigenvalues, known):
-    """d lambda_min / ds at s = 0 along ``tangent``: analytic from the mode ``known``
-    carries where lambda_min is simple, else the tracker's forward difference."""
-    lam = eigenvalues[0]
-    simple = len(eigenvalues) == 1 or eigenvalues[1] - lam > 1e-6 * abs(eigenvalues[-1])
-    if known is not None and known.mode is not None and simple:
-        return path.eigenvalue_rate(y, 0.0, tangent, lam, known.mode)
-    h = 1e-6
-    return (path.eigenvalues(y + h * tangent, h)[0] - lam) / h
-
-
 def _whole_command_step(path, y, settings, known=None):
     """The tracker's first step when it spans the whole command: (state, eigenvalues) at
     s = 1, or ``None`` wherever the tracker would do anything else.
@@ -842,7 +773,8 @@ def _whole_command_step(path, y, settings, known=None):
         return None
     energy0 = path.energy(y, 0.0) if known is None else known.energy
     energy_s0 = path.energy_s(y, 0.0)
-    rate = _lowest_eigenvalue_rate(path, y, tangent, eigenvalues, known)
+    h = 1e-6                                  # the tracker's d lambda_min / ds
+    rate = (path.eigenvalues(y + h * tangent, h)[0] - eigenvalues[0]) / h
     if rate < 0.0 and (1.0 - cfg.eigenvalue_shrink) * eigenvalues[0] < -rate:
         return None
     predicted = y + tangent
@@ -853,8 +785,8 @@ def _whole_command_step(path, y, settings, known=None):
     slack = 1e-9 * (abs(energy0) + abs(energy1) + scale) + 0.5 * abs(energy_s1 - energy_s0)
     if abs((energy1 - energy0) - 0.5 * (energy_s0 + energy_s1)) > slack:
         return None
-    eigenvalues1, mode1 = path.lowest_mode(y1, 1.0)
-    return (y1, eigenvalues1, energy1, residual, mode1) if definite(eigenvalues1) else None
+    eigenvalues1 = path.eigenvalues(y1, 1.0)
+    return (y1, eigenvalues1, energy1, residual) if definite(eigenvalues1) else None
 
 
 def _checked_angles(theta, n):

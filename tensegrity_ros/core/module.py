@@ -11,7 +11,6 @@ at A4, which is exact for uniform rods pinned at their other end.
 from __future__ import annotations
 
 import math
-import copy
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
@@ -124,8 +123,9 @@ class ModuleParams:
         re-validation of every field.  Same result and errors as ``with_(rho=rho)``."""
         if not (isinstance(rho, float) and MIN_MAGNITUDE <= rho <= MAX_MAGNITUDE):
             return self.with_(rho=rho)          # the full check (and its usual error)
-        moved = copy.copy(self)
-        object.__setattr__(moved, 'rho', float(rho))
+        moved = object.__new__(type(self))
+        moved.__dict__.update(self.__dict__)
+        moved.__dict__['rho'] = float(rho)
         return moved
 
 

@@ -214,8 +214,9 @@ class _Values:
     """The path's parameters at one s, or their rates along s (all linear in the
     parameter vector, so the values at s are those at 0 plus s times the rates)."""
 
-    __slots__ = ('s', 'k', 'chord', 'chord_squares', 'rod', 'rod_loads', 'base_load', 'rho0',
-                 'shift', 'weights')
+    _FIELDS = ('k', 'chord', 'chord_squares', 'rod', 'rod_loads', 'base_load', 'rho0', 'shift',
+               'weights')
+    __slots__ = ('s', '_scales') + _FIELDS
 
     @classmethod
     def of(cls, top, g, p, s):
@@ -243,12 +244,28 @@ class _Values:
                                                             stack._vector, None)
         return found
 
+    def scales(self, top):
+        """(l_ref, f_ref, state_weights) of a path starting at these values (computed
+        once per start: they depend on its rods and springs only).
+
+        l_ref is the mean rod length; multipliers are stored in units of f_ref = max k
+        l_ref, so that the state is dimensionless.  Step sizes are node displacements
+        (in l_ref), as in node coordinates: a node is moved by at most the summed
+        lengths of the rods that build it times max |d phi|."""
+        try:
+            return self._scales
+        except AttributeError:
+            l_ref = float(self.rod.sum()) / top.n_rods
+            weights = top.angle_mask * (float((top.node_rods @ self.rod).max()) / l_ref)
+            self._scales = (l_ref, float(self.k.max()) * l_ref, weights)
+            return self._scales
+
     @classmethod
     def difference(cls, one, zero):
         """one - zero: the rates along s of a straight path."""
         self = cls()
         self.s = None
-        for name in cls.__slots__[1:]:
+        for name in cls._FIELDS:
             setattr(self, name, getattr(one, name) - getattr(zero, name))
         return self
 
@@ -353,20 +370,14 @@ class StackPath:
         self.topology = top = _topology(len(start))
         self.n = len(start)
         self.size = top.n_rods + top.n_chords
-        self.p0 = start.vector()
-        self.dp = end.vector() - self.p0
+        self.p0 = start._vector                 # read only (a Stack's own vector)
+        self.dp = end._vector - self.p0
         self.g = start.modules[0].g
-        rods = self.p0[top.rod_index]
-        self.l_ref = float(rods.sum()) / top.n_rods
-        # multipliers are stored in units of f_ref, so that the state is dimensionless
-        self.f_ref = float(self.p0[top.spring_index].max()) * self.l_ref
+        zero, one = _Values.of_stack(start, top), _Values.of_stack(end, top)
+        self.l_ref, self.f_ref, self.state_weights = zero.scales(top)
         self.half_inv_l_ref = 0.5 / self.l_ref
         self.f_ref_per_l_ref = self.f_ref / self.l_ref
         self.inv_l_ref = 1.0 / self.l_ref
-        # Step sizes as node displacements (in l_ref), as in node coordinates: a node is
-        # moved by at most the summed lengths of the rods that build it times max |d phi|.
-        self.state_weights = top.angle_mask * (float((top.node_rods @ rods).max()) / self.l_ref)
-        zero, one = _Values.of_stack(start, top), _Values.of_stack(end, top)
         self._zero_values = zero
         self._rate_values = _Values.difference(one, zero)
         self._values = {0.0: zero, 1.0: one}

@@ -149,6 +149,10 @@ class _Topology:
         ends = np.array(self.element_ends, dtype=int).reshape(-1, 2)
         self.element_rods = rods[ends[:, 0]] - rods[ends[:, 1]]          # (elements, 2N)
         self.element_rods_t = np.ascontiguousarray(self.element_rods.T)
+        # complex copies for products with rod vectors (no real-to-complex cast per call)
+        self.element_rods_c = self.element_rods.astype(complex)
+        self.element_rods_tc = self.element_rods_t.astype(complex)
+        self.node_rods_c = rods.astype(complex)
         self.element_base = base[ends[:, 0]] - base[ends[:, 1]]
         self.chord_rods = self.element_rods[len(springs):]
         self.n_springs = len(springs)
@@ -301,12 +305,12 @@ class _Point:
         self.key, self.values = key, values
         self.mu = y[n:] * path.f_ref
         self.rods = values.rod * np.exp(1j * y[:n])
-        diff = self.diff = top.element_rods @ self.rods + values.shift
+        diff = self.diff = top.element_rods_c @ self.rods + values.shift
         squares = self.squares = np.abs(diff)
         squares *= squares
         weights = self.weights = values.weights.copy()
         weights[top.n_springs:] = y[n:] * path.f_ref_per_l_ref
-        self.force = top.element_rods_t @ (weights * diff) - values.rod_loads
+        self.force = top.element_rods_tc @ (weights * diff) - values.rod_loads
         self._hessian = self._jc = self._gram = self.rates = None
 
     def gradient(self):
@@ -424,8 +428,8 @@ class StackPath:
     def nodes(self, y, s):
         """All node positions (nodes x 2) including the fixed A1(0), A2(0)."""
         top = self.topology
-        x = top.node_rods @ self.point(y, s).rods + top.node_base * self.at(s).rho0
-        return np.column_stack([x.real, x.imag])
+        x = top.node_rods_c @ self.point(y, s).rods + top.node_base * self.at(s).rho0
+        return x.view(float).reshape(-1, 2)           # (x, y) pairs: complex memory layout
 
     # -- PathProblem ---------------------------------------------------------------
     def residual(self, y, s):
@@ -447,7 +451,7 @@ class StackPath:
         if p.rates is None:
             rate = self._rate_values
             d_rods = p.rods * (rate.rod / p.values.rod)
-            p.rates = d_rods, self.topology.element_rods @ d_rods + rate.shift
+            p.rates = d_rods, self.topology.element_rods_c @ d_rods + rate.shift
         return p.rates
 
     def residual_s(self, y, s):
@@ -455,7 +459,7 @@ class StackPath:
         p = self.point(y, s)
         top, rate = self.topology, self._rate_values
         d_rods, d_diff = self._rates(p)
-        d_force = (top.element_rods_t @ (rate.weights * p.diff + p.weights * d_diff)
+        d_force = (top.element_rods_tc @ (rate.weights * p.diff + p.weights * d_diff)
                    - rate.rod_loads)
         d_gradient = (p.rods.conj() * d_force + d_rods.conj() * p.force).imag
         ns = top.n_springs

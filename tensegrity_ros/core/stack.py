@@ -29,6 +29,7 @@ from __future__ import annotations
 import cmath
 import functools
 import math
+import operator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,6 +42,7 @@ from .continuation import TrackerSettings
 from .module import ModuleParams, PARAMETER_NAMES, InvalidParameterError
 
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
+_PARAMETERS_OF = operator.attrgetter(*PARAMETER_NAMES)     # a module's parameters, in order
 _FIXED = 2          # A1(0) and A2(0) are the first two entries of the node table
 # Landing flow near kinematic singularities: the constraint Gram matrix (entries ~1)
 # is damped by up to _DAMPING once its smallest eigenvalue falls below _DAMPING_ONSET.
@@ -90,8 +92,7 @@ class Stack:
 
     @functools.cached_property
     def _vector(self):
-        return np.array([[getattr(m, name) for name in PARAMETER_NAMES]
-                         for m in self.modules], dtype=float).ravel()
+        return np.array([_PARAMETERS_OF(m) for m in self.modules], dtype=float).ravel()
 
     def from_vector(self, values):
         values = np.asarray(values, dtype=float).reshape(len(self), len(PARAMETER_NAMES))
@@ -576,7 +577,10 @@ class StackPath:
         frame = np.concatenate([[1.0], p.chords(self)])          # module x axes A1 -> A2
         frame = frame / np.abs(frame)
         rods = (p.rods / p.values.rod).reshape(self.n, 2)
-        return np.angle(np.column_stack([rods[:, 0] * frame.conj(), -frame / rods[:, 1]]))
+        local = np.empty((self.n, 2), dtype=complex)
+        local[:, 0] = rods[:, 0] * frame.conj()
+        local[:, 1] = -frame / rods[:, 1]
+        return np.angle(local)
 
     def state_from_angles(self, theta, s):
         """Rod angles from local angles (N x 2), projected onto the constraints."""

@@ -757,55 +757,52 @@ def _newton(path, y, s, tol, iterations):
 
 
 def _whole_command_step(path, y, settings, known=None):
-    """The tracker's first step when it spans the whole command: (state, eigenvalues) at
-    s = 1, or ``None`` wherever the tracker would do anything else.
+    """The tracker's first step when it spans the whole command: (state, eigenvalues,
+    energy, residual) at s = 1, or ``None`` wherever the tracker would do anything else.
 
-    A small command is one continuation step, verified exactly as the tracker verifies
-    a step (:func:`~.continuation.track`): a stable equilibrium at s = 0; the step within
-    ``max_state_step`` and within the eigenvalue-halving bound from d lambda_min / ds;
-    Newton contracting to a point near the prediction; the energy change matching the
-    envelope theorem; the reduced Hessian positive definite at s = 1.  Anything else (a
-    longer command, a soft mode, an event) returns ``None`` and the tracker runs in
-    full.  This is the same work without the tracker's generality (no step loop,
-    no second Newton at s = 0, no re-evaluation of what is already known: ``known`` is
-    the :class:`StackEquilibrium` of ``y`` when it was verified at the start parameters,
-    whose eigenvalues, residual and energy are those at s = 0)."""
+    A small command is one continuation step, accepted by the tracker's own rules
+    (:mod:`.continuation`: :func:`~.continuation.positive_definite`,
+    :func:`~.continuation.step_bound`, :func:`~.continuation.near_prediction`,
+    :func:`~.continuation.energy_consistent`): a stable equilibrium at s = 0, a whole
+    step within the step bound, Newton contracting to a point near the prediction, the
+    energy change matching the envelope theorem, a positive definite reduced Hessian at
+    s = 1.  Anything else (a longer command, a soft mode, an event) returns ``None`` and
+    the tracker runs in full.  What is skipped is the tracker's generality only (no step
+    loop, no second Newton at s = 0, no re-evaluation of what is already known:
+    ``known`` is the :class:`StackEquilibrium` of ``y`` when it was verified at the start
+    parameters, whose eigenvalues, residual and energy are those at s = 0)."""
     cfg = settings
     eigenvalues = path.eigenvalues(y, 0.0) if known is None else known.eigenvalues
     scale = max(abs(eigenvalues[-1]), 1e-300)
-    floor = scale * 1e-3
-
-    def definite(values):
-        return values[0] > cfg.definiteness_tol * max(abs(values[-1]), floor)
-
     tol = cfg.residual_tol * scale
     weights = path.state_weights
     residual0 = _inf_norm(path.residual(y, 0.0)) if known is None else known.residual
-    if not definite(eigenvalues) or residual0 > tol:
+    if not _continuation.positive_definite(eigenvalues, scale, cfg) or residual0 > tol:
         return None
     try:
         tangent = -_solve(path.jacobian(y, 0.0), path.residual_s(y, 0.0))
     except np.linalg.LinAlgError:
         return None
     reach = _inf_norm(weights * tangent)
-    if not reach <= cfg.max_state_step:
+    if not reach <= cfg.max_state_step:       # cheap early out: step_bound below says the same
         return None
     energy0 = path.energy(y, 0.0) if known is None else known.energy
-    energy_s0 = path.energy_s(y, 0.0)
-    h = 1e-6                                  # the tracker's d lambda_min / ds
-    rate = (path.eigenvalues(y + h * tangent, h)[0] - eigenvalues[0]) / h
-    if rate < 0.0 and (1.0 - cfg.eigenvalue_shrink) * eigenvalues[0] < -rate:
+    energy_s0 = path.energy_s(y, 0.0)          # (before the point at y0 is left)
+    rate = _continuation.forward_rate(path.eigenvalues, y, 0.0, tangent, eigenvalues[0])
+    if not _continuation.step_bound(reach, eigenvalues[0], rate, cfg) >= 1.0:
         return None
     predicted = y + tangent
     y1, residual = _newton(path, predicted, 1.0, tol, cfg.newton_iterations)
-    if y1 is None or _inf_norm(weights * (y1 - predicted)) > 0.5 * reach + 1e-9:
+    if y1 is None or not _continuation.near_prediction(_inf_norm(weights * (y1 - predicted)),
+                                                       reach, 1.0, cfg):
         return None
     energy1, energy_s1 = path.energy_and_rate(y1, 1.0)
-    slack = 1e-9 * (abs(energy0) + abs(energy1) + scale) + 0.5 * abs(energy_s1 - energy_s0)
-    if abs((energy1 - energy0) - 0.5 * (energy_s0 + energy_s1)) > slack:
+    if not _continuation.energy_consistent(energy0, energy1, energy_s0, energy_s1, 1.0, scale):
         return None
     eigenvalues1 = path.eigenvalues(y1, 1.0)
-    return (y1, eigenvalues1, energy1, residual) if definite(eigenvalues1) else None
+    if not _continuation.positive_definite(eigenvalues1, scale, cfg):
+        return None
+    return y1, eigenvalues1, energy1, residual
 
 
 def _checked_angles(theta, n):

@@ -96,6 +96,10 @@ class TrackerSettings:
     #: Two states closer than this (weighted state norm) are the same state; also the
     #: corrector's slack near a critical point, where rounding is amplified by 1/lambda_min.
     same_state_tol: float = 1e-7
+    #: Near a pitchfork |lambda_min| <= critical_tol pins the critical state only to
+    #: ~sqrt(critical_tol): a landing this close to it (weighted state norm) that does
+    #: not move with the freezing offset is the minimum going on, not a jump.
+    passage_radius: float = 1e-4
     #: A located critical point must have |lambda_min| below this, relative to the scale.
     critical_tol: float = 1e-9
     #: An arclength step is kept only if the branch direction turns less than this
@@ -450,7 +454,7 @@ class _Tracker:
             test = lambda hh: self.margin(*point(hh))                          # noqa: E731
         else:                       # the branch turned back in s while staying stable
             test = lambda hh: self.curve_tangent(*point(hh), direction)[-1]   # noqa: E731
-        return 'event', self.critical_point(test, point, 0.0, h, turned=True)
+        return 'event', self.critical_point(test, point, 0.0, h)
 
     def crossing_on_path(self, y, s, tangent, s_bad):
         """The critical point where lambda_min crosses zero between the verified (y, s)
@@ -462,11 +466,11 @@ class _Tracker:
                 raise _Lost
             return found, t
 
-        return self.critical_point(lambda t: self.margin(*point(t)), point, s, s_bad, turned=False)
+        return self.critical_point(lambda t: self.margin(*point(t)), point, s, s_bad)
 
-    def critical_point(self, test, point, a, b, turned):
+    def critical_point(self, test, point, a, b):
         """Root of a test function bracketed by two verified states, checked to be
-        critical (lambda_min ~ 0); returns (kind, s, y, turned) or ``None``."""
+        critical (lambda_min ~ 0); returns (kind, s, y) or ``None``."""
         try:
             with np.errstate(all='ignore'):
                 a, b, test_a, test_b = _bracket(test, a, b)
@@ -489,7 +493,7 @@ class _Tracker:
             return None
         ratio = self.orthogonality(y_star, s_star, psi)
         kind = FOLD if ratio > self.settings.branch_tol else BRANCH_POINT
-        return kind, s_star, y_star, turned
+        return kind, s_star, y_star
 
     # -- events ---------------------------------------------------------------
     def critical(self, y, s, reference=None):
@@ -505,14 +509,14 @@ class _Tracker:
         norm = np.linalg.norm(fs)
         return abs(psi @ fs) / norm if norm > 0 else 0.0
 
-    def land(self, kind, s_star, y_star, turned, s_end):
+    def land(self, kind, s_star, y_star, s_end):
         """Where the mechanism goes after the critical point: (state, s, event or None).
 
         The parameters are frozen just past the event; the mechanism steps off along
-        the critical mode and slides down.  Where the branch turned back at s* and
+        the critical mode and slides down.  Where the tracked branch ends at s* and
         the landing closes in on the critical point as the offset shrinks (a minimum
         crossing onto another branch, e.g. a supercritical pitchfork run backwards),
-        the state simply follows: no event (so no event can land on its own
+        the state simply follows (see :meth:`continuous`): no event (so no event can land on its own
         departure).  If "just past" lies beyond the end of the command,
         the landed state is followed back along its own branch to the end point.
         """
@@ -522,7 +526,7 @@ class _Tracker:
         if s_land > s_end and not _admissible(problem, s_land):
             s_land = s_end
         landing, ambiguous, s_land = self.landing_state(kind, s_star, y_star, s_land, s_end)
-        event = None if self.continuous(kind, s_star, y_star, s_land, landing, turned) else kind
+        event = None if self.continuous(kind, s_star, y_star, s_land, landing) else kind
         if s_land > s_end:
             back = _Tracker(_Segment(problem, s_land, s_end), self.settings).run(landing)
             if back.status != 'ok' or back.events:
@@ -534,26 +538,32 @@ class _Tracker:
         return landing, s_land, Event(kind=kind, s=s_star, state=y_star, landing_s=s_land,
                                       landing=landing, ambiguous=ambiguous)
 
-    def continuous(self, kind, s_star, y_star, s_land, landing, turned):
+    def continuous(self, kind, s_star, y_star, s_land, landing):
         """Whether the landing is the tracked minimum going on rather than a jump.
 
-        It is when the landing is the departure itself (rounding level), or, where
-        the branch turned back at s*, when the landing closes in on the departure
+        It is when the landing is the departure itself (rounding level), or when
+        the tracked branch does not go on past s* as an unstable equilibrium (as it
+        does where a minimum buckles) and the landing closes in on the departure
         as the offset shrinks (a jump lands a finite distance away however close
         to s* it is frozen).  So a jump that lands on its own start cannot be made.
         """
         cfg = self.settings
-        distance = self.step_norm(self.canonical(landing) - self.canonical(y_star))
+        distance = self.separation(landing, y_star)
         if distance <= cfg.same_state_tol:
             return True
-        if not turned or distance >= cfg.max_state_step:
+        if distance >= cfg.max_state_step:
             return False
+        onward = self.newton(y_star, s_land)
+        if (onward is not None and self.separation(onward, landing) > cfg.same_state_tol
+                and not self.definite(self.eigenvalues(onward, s_land))):
+            return False            # the tracked state goes on, unstable: it buckled
         try:
             closer, _, _ = self.landing_state(kind, s_star, y_star, s_star + 0.01 * (s_land - s_star))
         except TrackingError:
             return False            # not shown to close in: the verified landing stands
-        return (self.step_norm(self.canonical(closer) - self.canonical(y_star))
-                <= 0.3 * distance + cfg.same_state_tol)
+        if distance <= cfg.passage_radius:          # the same point, as well as it is known
+            return self.separation(closer, landing) <= cfg.passage_radius
+        return self.separation(closer, y_star) <= 0.3 * distance + cfg.same_state_tol
 
     def landing_state(self, kind, s_star, y_star, s_land, s_end=None):
         """Step off along the critical mode at frozen s_land and slide: (landing, ambiguous, s_land).
@@ -590,8 +600,12 @@ class _Tracker:
             raise TrackingError(f'could not land after the {kind} at s={s_star!r}')
         landings.sort(key=lambda y: problem.energy(y, s_land))
         ambiguous = (len(landings) == 2
-                     and _inf_norm(self.canonical(landings[0]) - self.canonical(landings[1])) > 1e-6)
+                     and self.separation(landings[0], landings[1]) > 1e-6)
         return landings[0], ambiguous
+
+    def separation(self, a, b):
+        """Distance of two states (weighted), with angles compared modulo 2 pi."""
+        return self.step_norm(self.canonical(a - b))
 
     def canonical(self, y):
         return getattr(self.problem, 'canonical', lambda v: v)(y)

@@ -1,0 +1,659 @@
+"""An independent reference for tracking: the quasi-static path of an overdamped mechanism.
+
+Written for the tests and sharing no code with ``tensegrity_ros.core``.  The mechanism
+moves along the straight parameter path p(s) = start + s (end - start) slowly and
+heavily damped: at each small step of s the parameters are frozen and the mechanism
+slides down its energy (gradient flow d theta/dt = -grad U, integrated with
+``scipy.integrate.solve_ivp``) until it rests on a *certified* minimum, then s moves on.
+
+A rest point is certified when Newton from the current point converges to a point
+theta* whose Hessian is positive definite with lambda_min > M |theta - theta*|, M a
+bound on the third derivatives: the energy is then strictly convex on the ball around
+theta* holding theta, so the flow provably ends at theta* (it never leaves that ball).
+Everything else is integrated.  A flow that stalls on a saddle is pushed off along the
+unstable mode both ways by 1e-7 rad (the lower-energy landing wins, a disagreement is
+recorded as ``ambiguous``).
+
+A jump is a step whose displacement is large compared with the motion of the previous
+steps and stays finite as the step shrinks: it is bisected in s down to ``JUMP_BRACKET``
+(the last s where the mechanism still rests continuously next to its previous state,
+and the first s where it lands far away), then the critical point is solved from the
+bracket on {grad U = 0, det H = 0} (``scipy.optimize.root``), kept only if it lies in
+the bracket.  The landing is the rest point reached by the flow from the last
+continuous state with the parameters frozen at the bracket's far end.
+
+One module: energy, gradient and Hessian written again from DESIGN.md section 1.
+A neck of N modules (DESIGN.md section 4): the 2N local angles, the energy from the
+node positions (forward kinematics written here), the N - 1 chord constraints
+|A3(i) - A4(i)| = rho(i + 1); the flow is the angle-space gradient projected on the
+constraints' tangent space (plus a pull back onto them), rest points are KKT points
+with a positive definite reduced Hessian.  Derivatives of the neck: complex-step
+gradients (exact to rounding) and central differences of them for the Hessians.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.optimize import root
+
+from oracle_solver import oracle_equilibria
+
+TWO_PI = 2.0 * math.pi
+#: Width in s of the bracket a jump is bisected to.
+JUMP_BRACKET = 1e-11
+#: A continuous step moves at most this far (rad, max norm) before it is split.
+MAX_STEP_MOTION = 0.02
+#: Steps in s: first and largest, and the smallest before a suspicious step is bisected.
+FIRST_STEP = 1.0 / 128
+MAX_STEP = 1.0 / 64
+MIN_STEP = 1e-6
+#: Landing past a branch point (where the flow stalls on the saddle) is computed this
+#: far past the bracket in s (the landing state moves continuously with s).
+LANDING_OFFSET = 1e-6
+#: A jump lands at least this far (rad, max norm) from the last continuous state.
+JUMP_DISTANCE = 1e-5
+#: Push-off from a saddle along its unstable mode (rad).
+PUSH_OFF = 1e-7
+#: Longest flow (in units of the stiffest relaxation time) before the reference gives up.
+MAX_FLOW_TIME = 1e18
+
+FIELDS = ('rho', 'L1', 'L2', 'ka', 'kb', 'kc', 'f3x', 'f3y', 'f4x', 'f4y', 'm1', 'm2')
+
+
+def wrap(theta):
+    return (np.asarray(theta, dtype=float) + math.pi) % TWO_PI - math.pi
+
+
+def angle_distance(a, b):
+    """Max-norm distance of two angle vectors on the torus."""
+    return float(np.max(np.abs(wrap(np.asarray(a, dtype=float) - np.asarray(b, dtype=float)))))
+
+
+def values_of(params):
+    """The 12 parameter values of a public ``ModuleParams`` (read by attribute)."""
+    return np.array([float(getattr(params, name)) for name in FIELDS]), float(params.g)
+
+
+# -- one module (DESIGN.md section 1) -----------------------------------------------------
+
+@dataclass(frozen=True)
+class Point:
+    """One module's parameters at one s, rod weights folded into the nodal loads."""
+
+    rho: float
+    L1: float
+    L2: float
+    ka: float
+    kb: float
+    kc: float
+    f3x: float
+    f3y: float
+    f4x: float
+    f4y: float
+
+    @classmethod
+    def from_values(cls, v, g):
+        rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y, m1, m2 = (float(x) for x in v)
+        return cls(rho, L1, L2, ka, kb, kc, f3x, f3y - 0.5 * m1 * g, f4x, f4y - 0.5 * m2 * g)
+
+
+def module_energy(p, t):
+    a3 = np.array([p.L1 * math.cos(t[0]), p.L1 * math.sin(t[0])])
+    a4 = np.array([p.rho - p.L2 * math.cos(t[1]), p.L2 * math.sin(t[1])])
+    a2 = np.array([p.rho, 0.0])
+    return (0.5 * p.ka * np.sum((a3 - a2) ** 2) + 0.5 * p.kb * np.sum(a4 ** 2)
+            + 0.5 * p.kc * np.sum((a4 - a3) ** 2)
+            - (p.f3x * a3[0] + p.f3y * a3[1] + p.f4x * a4[0] + p.f4y * a4[1]))
+
+
+def module_gradient(p, t):
+    s1, c1, s2, c2 = math.sin(t[0]), math.cos(t[0]), math.sin(t[1]), math.cos(t[1])
+    s12 = math.sin(t[0] + t[1])
+    return np.array([
+        p.L1 * ((p.ka + p.kc) * p.rho * s1 - p.kc * p.L2 * s12 + p.f3x * s1 - p.f3y * c1),
+        p.L2 * ((p.kb + p.kc) * p.rho * s2 - p.kc * p.L1 * s12 - p.f4x * s2 - p.f4y * c2)])
+
+
+def module_hessian(p, t):
+    s1, c1, s2, c2 = math.sin(t[0]), math.cos(t[0]), math.sin(t[1]), math.cos(t[1])
+    c12 = math.cos(t[0] + t[1])
+    h12 = -p.kc * p.L1 * p.L2 * c12
+    return np.array([
+        [p.L1 * ((p.ka + p.kc) * p.rho * c1 - p.kc * p.L2 * c12 + p.f3x * c1 + p.f3y * s1), h12],
+        [h12, p.L2 * ((p.kb + p.kc) * p.rho * c2 - p.kc * p.L1 * c12 - p.f4x * c2 + p.f4y * s2)]])
+
+
+def module_third_derivative_bound(p):
+    """M with ||H(a) - H(b)||_2 <= M |a - b|_2: every Hessian entry is a sum of
+    sines/cosines of t1, t2 or t1 + t2 (gradient norm <= sqrt 2) with known coefficients."""
+    c11 = p.L1 * ((p.ka + p.kc) * p.rho + p.kc * p.L2 + abs(p.f3x) + abs(p.f3y))
+    c22 = p.L2 * ((p.kb + p.kc) * p.rho + p.kc * p.L1 + abs(p.f4x) + abs(p.f4y))
+    c12 = p.kc * p.L1 * p.L2
+    return math.sqrt(2.0) * math.sqrt(c11 ** 2 + c22 ** 2 + 2.0 * c12 ** 2)
+
+
+class ModuleSystem:
+    """One module along a straight parameter path (ModuleParams start -> end)."""
+
+    def __init__(self, start, end=None):
+        self.v0, self.g = values_of(start)
+        v1, _ = values_of(start if end is None else end)
+        self.dv = v1 - self.v0
+
+    def point(self, s):
+        return Point.from_values(self.v0 + s * self.dv, self.g)
+
+    def energy(self, t, s):
+        return module_energy(self.point(s), t)
+
+    def gradient(self, t, s):
+        return module_gradient(self.point(s), t)
+
+    def hessian(self, t, s):
+        return module_hessian(self.point(s), t)
+
+    def rate(self, s):
+        return module_third_derivative_bound(self.point(s))
+
+    def residual_scale(self, s):
+        return self.rate(s)
+
+    def start_state(self, theta):
+        return np.asarray(theta, dtype=float).copy()
+
+    def angles(self, t):
+        return wrap(t)
+
+    def velocity(self, t, s):
+        return -self.gradient(t, s) / self.rate(s)
+
+    def velocity_jacobian(self, t, s):
+        return -self.hessian(t, s) / self.rate(s)
+
+    def force(self, t, s):
+        """|grad U| relative to the energy scale."""
+        return float(np.linalg.norm(self.gradient(t, s))) / self.rate(s)
+
+    def critical_point(self, t, s, iterations=60):
+        """Newton on grad U = 0 from t: (point, converged).  Converged means the Newton
+        step itself is at rounding level (a small gradient alone is not enough where the
+        Hessian is nearly singular)."""
+        t = np.array(t, dtype=float)
+        scale = self.residual_scale(s)
+        for _ in range(iterations):
+            g = self.gradient(t, s)
+            try:
+                step = np.linalg.solve(self.hessian(t, s), g)
+            except np.linalg.LinAlgError:
+                return t, False
+            if not np.all(np.isfinite(step)) or np.max(np.abs(step)) > 0.5:
+                return t, False
+            t = t - step
+            if np.max(np.abs(step)) < 1e-14:
+                return t, bool(np.max(np.abs(self.gradient(t, s))) <= 1e-11 * scale)
+        return t, False
+
+    def stability(self, t, s):
+        """Ascending eigenvalues and modes (columns) of the Hessian."""
+        return np.linalg.eigh(self.hessian(t, s))
+
+    def certified_rest(self, t, s):
+        """The minimum the flow from t provably ends at, or None (see the module docstring)."""
+        star, ok = self.critical_point(t, s)
+        if not ok:
+            return None
+        low = np.linalg.eigvalsh(self.hessian(star, s))[0]
+        return star if low > self.rate(s) * float(np.linalg.norm(star - t)) else None
+
+    def on_saddle(self, t, s):
+        return stalled_on_saddle(self, t, s)
+
+    def critical_residual(self, z):
+        """{grad U = 0, det H = 0} in (t1, t2, s), scaled."""
+        t, s = z[:2], z[2]
+        scale = self.rate(s)
+        return np.concatenate([self.gradient(t, s) / scale,
+                               [np.linalg.det(self.hessian(t, s)) / scale ** 2]])
+
+    def is_stable_equilibrium(self, t, s, tol=1e-8):
+        """Gradient ~ 0 (relative) and Hessian positive definite, by this reference."""
+        scale = self.rate(s)
+        low = np.linalg.eigvalsh(self.hessian(t, s))[0]
+        return bool(np.max(np.abs(self.gradient(t, s))) <= tol * scale and low > 0)
+
+
+# -- the neck (DESIGN.md section 4) ---------------------------------------------------------
+
+class NeckSystem:
+    """N stacked modules in their 2N local angles with N - 1 chord constraints.
+
+    ``start``/``end`` are sequences of ``ModuleParams`` (bottom to top).  A lower
+    module's A3A4 spring is kept (it is in parallel with the rigid chord: a constant
+    energy on the constraint set, no effect on equilibria or stability)."""
+
+    COMPLEX_STEP = 1e-30
+    FD_STEP = 1e-5
+
+    def __init__(self, start, end=None):
+        end = start if end is None else end
+        pairs = [values_of(m) for m in start]
+        self.g = pairs[0][1]
+        self.v0 = np.array([v for v, _ in pairs])
+        self.dv = np.array([values_of(m)[0] for m in end]) - self.v0
+        self.n = len(start)
+
+    def values(self, s):
+        return self.v0 + s * self.dv
+
+    def nodes(self, theta, s):
+        """A1, A2, A3, A4 of every module, base frame: arrays (batch, N, 4, 2) (complex ok)."""
+        theta = np.asarray(theta)
+        batch = theta.reshape(-1, self.n, 2)
+        v = self.values(s)
+        dtype = np.result_type(batch.dtype, float)
+        out = np.zeros((batch.shape[0], self.n, 4, 2), dtype=dtype)
+        a1 = np.zeros((batch.shape[0], 2), dtype=dtype)
+        a2 = np.zeros((batch.shape[0], 2), dtype=dtype)
+        a2[:, 0] = v[0, 0]
+        for i in range(self.n):
+            d = a2 - a1
+            e = d / np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2)[:, None]
+            nrm = np.stack([-e[:, 1], e[:, 0]], axis=1)
+            t1, t2 = batch[:, i, 0][:, None], batch[:, i, 1][:, None]
+            L1, L2 = v[i, 1], v[i, 2]
+            a3 = a1 + L1 * (np.cos(t1) * e + np.sin(t1) * nrm)
+            a4 = a2 + L2 * (-np.cos(t2) * e + np.sin(t2) * nrm)
+            out[:, i] = np.stack([a1, a2, a3, a4], axis=1)
+            a1, a2 = a4, a3
+        return out
+
+    def _energy_batch(self, theta, s):
+        x = self.nodes(theta, s)
+        v = self.values(s)
+        sq = lambda d: d[..., 0] ** 2 + d[..., 1] ** 2      # noqa: E731
+        a1, a2, a3, a4 = x[:, :, 0], x[:, :, 1], x[:, :, 2], x[:, :, 3]
+        ka, kb, kc = v[:, 3], v[:, 4], v[:, 5]
+        springs = 0.5 * (ka * sq(a3 - a2) + kb * sq(a4 - a1) + kc * sq(a4 - a3))
+        loads = (v[:, 6] * a3[..., 0] + v[:, 7] * a3[..., 1]
+                 + v[:, 8] * a4[..., 0] + v[:, 9] * a4[..., 1])
+        weights = 0.5 * self.g * (v[:, 10] * (a1[..., 1] + a3[..., 1])
+                                  + v[:, 11] * (a2[..., 1] + a4[..., 1]))
+        return np.sum(springs - loads + weights, axis=1)
+
+    def _chords_batch(self, theta, s):
+        """(|A3(i) - A4(i)|^2 - rho(i+1)^2) / (2 rho(i+1)), i < N - 1: (batch, N - 1)."""
+        x = self.nodes(theta, s)
+        v = self.values(s)
+        d = x[:, :-1, 2] - x[:, :-1, 3]
+        rho = v[1:, 0]
+        return (d[..., 0] ** 2 + d[..., 1] ** 2 - rho ** 2) / (2.0 * rho)
+
+    def energy(self, theta, s):
+        return float(self._energy_batch(np.asarray(theta, dtype=float)[None], s)[0].real)
+
+    def constraints(self, theta, s):
+        return self._chords_batch(np.asarray(theta, dtype=float)[None], s)[0].real
+
+    def _complex_step(self, theta, s):
+        """(grad U, constraint Jacobian (N-1, 2N)) by complex steps."""
+        theta = np.asarray(theta, dtype=float)
+        m = theta.size
+        probe = theta[None, :] + 1j * self.COMPLEX_STEP * np.eye(m)
+        grad = self._energy_batch(probe, s).imag / self.COMPLEX_STEP
+        jac = self._chords_batch(probe, s).imag.T / self.COMPLEX_STEP
+        return grad, jac
+
+    def gradient(self, theta, s):
+        return self._complex_step(theta, s)[0]
+
+    def constraint_jacobian(self, theta, s):
+        return self._complex_step(theta, s)[1]
+
+    def lagrangian_gradient(self, theta, mu, s):
+        grad, jac = self._complex_step(theta, s)
+        return grad + jac.T @ mu
+
+    def lagrangian_hessian(self, theta, mu, s):
+        theta = np.asarray(theta, dtype=float)
+        m, h = theta.size, self.FD_STEP
+        cols = [(self.lagrangian_gradient(theta + h * e, mu, s)
+                 - self.lagrangian_gradient(theta - h * e, mu, s)) / (2 * h) for e in np.eye(m)]
+        w = np.array(cols).T
+        return 0.5 * (w + w.T)
+
+    def rate(self, s):
+        """An energy scale (J): stiffness times length squared plus load times length."""
+        v = self.values(s)
+        length = float(np.max(v[:, 1:3]))
+        load = float(np.max(np.abs(v[:, 6:10]))) + 0.5 * self.g * float(np.max(v[:, 10:12]))
+        return float(np.max(v[:, 3:6])) * length ** 2 + load * length
+
+    def residual_scale(self, s):
+        return self.rate(s)
+
+    def start_state(self, theta):
+        return np.asarray(theta, dtype=float).ravel().copy()
+
+    def angles(self, t):
+        return wrap(t).reshape(self.n, 2)
+
+    def multipliers(self, theta, s):
+        grad, jac = self._complex_step(theta, s)
+        if jac.shape[0] == 0:
+            return np.zeros(0)
+        return -np.linalg.lstsq(jac.T, grad, rcond=None)[0]
+
+    def velocity(self, theta, s):
+        grad, jac = self._complex_step(theta, s)
+        rate = self.rate(s)
+        if jac.shape[0] == 0:
+            return -grad / rate
+        gram = jac @ jac.T
+        tangential = grad - jac.T @ np.linalg.solve(gram, jac @ grad)
+        pull = jac.T @ np.linalg.solve(gram, self.constraints(theta, s))
+        return -tangential / rate - 10.0 * pull
+
+    def velocity_jacobian(self, theta, s):
+        """The flow's Jacobian up to terms that vanish at equilibria (enough for the
+        implicit integrator's Newton iterations)."""
+        mu = self.multipliers(theta, s)
+        w = self.lagrangian_hessian(theta, mu, s)
+        jac = self.constraint_jacobian(theta, s)
+        if jac.shape[0] == 0:
+            return -w / self.rate(s)
+        normal = jac.T @ np.linalg.solve(jac @ jac.T, jac)
+        tangent = np.eye(len(theta)) - normal
+        return -tangent @ w @ tangent / self.rate(s) - 10.0 * normal
+
+    def force(self, theta, s):
+        """Projected |grad U| relative to the energy scale, plus the constraint violation."""
+        grad, jac = self._complex_step(theta, s)
+        if jac.shape[0]:
+            grad = grad - jac.T @ np.linalg.solve(jac @ jac.T, jac @ grad)
+        violation = float(np.linalg.norm(self.constraints(theta, s)))
+        return float(np.linalg.norm(grad)) / self.rate(s) + violation
+
+    def _kkt(self, z, s):
+        m = 2 * self.n
+        theta, mu = z[:m], z[m:]
+        grad, jac = self._complex_step(theta, s)
+        return np.concatenate([grad + jac.T @ mu, self.constraints(theta, s)]), jac
+
+    def critical_point(self, theta, s, iterations=60):
+        """Newton on the KKT system from theta: (theta*, converged), converged meaning
+        a Newton step at rounding level (see :meth:`ModuleSystem.critical_point`)."""
+        m = 2 * self.n
+        z = np.concatenate([np.asarray(theta, dtype=float), self.multipliers(theta, s)])
+        scale = self.rate(s)
+        for _ in range(iterations):
+            f, jac = self._kkt(z, s)
+            w = self.lagrangian_hessian(z[:m], z[m:], s)
+            k = np.block([[w, jac.T], [jac, np.zeros((len(z) - m, len(z) - m))]])
+            try:
+                step = np.linalg.solve(k, f)
+            except np.linalg.LinAlgError:
+                return z[:m], False
+            if not np.all(np.isfinite(step)) or np.max(np.abs(step[:m])) > 0.5:
+                return z[:m], False
+            z = z - step
+            if np.max(np.abs(step[:m])) < 1e-13:
+                f, _ = self._kkt(z, s)
+                return z[:m], bool(np.max(np.abs(f[:m])) <= 1e-10 * scale
+                                   and np.max(np.abs(f[m:])) <= 1e-12)
+        return z[:m], False
+
+    def reduced(self, theta, s):
+        """(reduced Hessian, null-space basis Z) at a feasible theta."""
+        mu = self.multipliers(theta, s)
+        w = self.lagrangian_hessian(theta, mu, s)
+        jac = self.constraint_jacobian(theta, s)
+        if jac.shape[0] == 0:
+            return w, np.eye(w.shape[0])
+        _, _, vt = np.linalg.svd(jac)
+        z = vt[jac.shape[0]:].T
+        return z.T @ w @ z, z
+
+    def stability(self, theta, s):
+        r, z = self.reduced(theta, s)
+        values, vectors = np.linalg.eigh(r)
+        return values, z @ vectors
+
+    def certified_rest(self, theta, s):
+        """KKT point next to theta with a positive definite reduced Hessian, close enough
+        that the flow ends there: lambda_min > M |theta - theta*| with M a generous
+        bound (4 N times the energy scale) on the third derivatives."""
+        star, ok = self.critical_point(theta, s)
+        if not ok:
+            return None
+        low = np.linalg.eigvalsh(self.reduced(star, s)[0])[0]
+        bound = 4.0 * self.n * self.rate(s)
+        return star if low > bound * float(np.linalg.norm(star - theta)) else None
+
+    def on_saddle(self, theta, s):
+        return stalled_on_saddle(self, theta, s)
+
+    def critical_residual(self, z):
+        """{KKT = 0, det(reduced Hessian) = 0} in (theta, mu, s), scaled."""
+        m = 2 * self.n
+        s = z[-1]
+        scale = self.rate(s)
+        f, _ = self._kkt(z[:-1], s)
+        r, _ = self.reduced(z[:m], s)
+        det = np.linalg.det(r / scale)
+        return np.concatenate([f[:m] / scale, f[m:], [det]])
+
+    def is_stable_equilibrium(self, theta, s, tol=1e-8):
+        theta = np.asarray(theta, dtype=float).ravel()
+        mu = self.multipliers(theta, s)
+        scale = self.rate(s)
+        stationary = np.max(np.abs(self.lagrangian_gradient(theta, mu, s))) <= tol * scale
+        feasible = np.max(np.abs(self.constraints(theta, s)), initial=0.0) <= tol * 1e2
+        low = np.linalg.eigvalsh(self.reduced(theta, s)[0])[0]
+        return bool(stationary and feasible and low > 0)
+
+
+# -- the overdamped flow and the quasi-static path ----------------------------------------
+
+def stalled_on_saddle(system, y, s):
+    """(saddle, unstable mode) if y lies on a saddle's stable set (numerically: no
+    component along the unstable mode), where the flow would stall; else None."""
+    star, ok = system.critical_point(y, s)
+    if not ok or np.linalg.norm(star - y) > 1e-3:
+        return None
+    values, modes = system.stability(star, s)
+    if values[0] >= 0:
+        return None
+    offset = abs(float(modes[:, 0] @ (y - star)))
+    return (star, modes[:, 0]) if offset <= 1e-9 * float(np.linalg.norm(y - star)) + 1e-14 else None
+
+
+class NoRest(RuntimeError):
+    """The flow did not come to a certified rest within ``MAX_FLOW_TIME``."""
+
+
+@dataclass
+class Rest:
+    state: np.ndarray
+    ambiguous: bool = False
+
+
+class Stalled(RuntimeError):
+    """The flow stalled on a saddle's stable set and push-offs were not asked for."""
+
+
+def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
+    """Where the overdamped mechanism released at y0 (parameters frozen at s) comes to rest.
+
+    Integrated in legs, each ending when the (relative) force has fallen tenfold or the
+    leg's time is up; after each leg the rest point is certified if possible.  Each leg
+    integrates the displacement from an anchor (the leg's start, or the saddle pushed
+    off from), so that tolerances are relative to the motion itself: a slow escape from
+    a nearly degenerate saddle is resolved, not damped away by large implicit steps."""
+    y = np.array(y0, dtype=float)
+    chunk, elapsed = 1.0, 0.0
+    while True:
+        star = system.certified_rest(y, s)
+        if star is not None:
+            return Rest(star)
+        stalled = system.on_saddle(y, s)
+        if stalled is not None:
+            if push_offs <= 0:
+                raise Stalled(f'stalled on a saddle at s={s!r}')
+            return _push_off(system, *stalled, s, push_offs)
+        target = 0.1 * system.force(y, s)
+        if elapsed > MAX_FLOW_TIME:
+            raise NoRest(f'no certified rest at s={s!r} from {y0} after t={elapsed:g}')
+        base = y if anchor is None else anchor
+        atol = 1e-14 if anchor is None else 1e-10 * float(np.max(np.abs(y - anchor)))
+        anchor = None
+        weaker = lambda _, x: system.force(base + x, s) - target      # noqa: E731
+        weaker.terminal, weaker.direction = True, -1
+        sol = solve_ivp(lambda _, x: system.velocity(base + x, s), (0.0, chunk), y - base,
+                        method='LSODA', rtol=1e-10, atol=atol, events=weaker,
+                        jac=lambda _, x: system.velocity_jacobian(base + x, s))
+        y = base + sol.y[:, -1]
+        elapsed += float(sol.t[-1])
+        if sol.status != 1:
+            chunk *= 4.0
+
+
+def _push_off(system, star, mode, s, push_offs):
+    landings = [flow_to_rest(system, star + sign * PUSH_OFF * mode / np.max(np.abs(mode)), s,
+                             push_offs - 1, anchor=star) for sign in (1.0, -1.0)]
+    a, b = landings
+    ambiguous = angle_distance(a.state, b.state) > 1e-6
+    best = min(landings, key=lambda r: system.energy(r.state, s))
+    return Rest(best.state, ambiguous or a.ambiguous or b.ambiguous)
+
+
+def settle_reference(system, theta, s=0.0) -> Rest:
+    return flow_to_rest(system, system.start_state(theta), s)
+
+
+@dataclass
+class ReferenceJump:
+    """A jump of the quasi-static path: the mechanism rests continuously up to ``s_before``
+    and lands elsewhere at ``s_after`` (``s_after - s_before <= JUMP_BRACKET``)."""
+
+    s: float                  # critical point (solved), or the bracket's middle
+    s_before: float
+    s_after: float
+    departure: np.ndarray     # last continuous state (at s_before)
+    landing: np.ndarray       # rest point at s_after
+    kind: str                 # 'fold' (the critical mode meets dG/ds) or 'branch_point'
+    solved: bool              # s comes from the critical-point solve
+    ambiguous: bool = False
+
+
+@dataclass
+class ReferencePath:
+    final: np.ndarray
+    jumps: list = field(default_factory=list)
+    steps: int = 0
+    start: np.ndarray = None
+
+
+def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
+    """Follow the overdamped mechanism from rest near ``theta`` at s0 to s1."""
+    y = settle_reference(system, theta, s0).state
+    path = ReferencePath(final=y, start=y.copy())
+    s, ds, slope = s0, FIRST_STEP, None
+    while s < s1:
+        s_new = min(s1, s + ds)
+        path.steps += 1
+        try:
+            rest = flow_to_rest(system, y, s_new, push_offs=0)
+        except Stalled:                 # the branch has become a saddle: a jump
+            rest = None
+        if rest is None:
+            jump = _bisect_jump(system, s, y, s_new, None)
+            path.jumps.append(jump)
+            s, y, slope, ds = jump.s_after, jump.landing, None, FIRST_STEP
+            continue
+        motion = angle_distance(rest.state, y)
+        suspicious = motion > MAX_STEP_MOTION or (
+            slope is not None and motion > 3.0 * slope * (s_new - s) + 1e-6)
+        if suspicious and s_new - s > MIN_STEP:
+            ds = 0.25 * (s_new - s)
+            continue
+        if suspicious:
+            jump = _bisect_jump(system, s, y, s_new, rest)
+            if jump is not None:
+                path.jumps.append(jump)
+                s, y, slope, ds = jump.s_after, jump.landing, None, FIRST_STEP
+                continue
+        slope = None if suspicious else motion / (s_new - s)
+        s, y = s_new, rest.state
+        ds = min(MAX_STEP, 2.0 * ds) if motion < 0.25 * MAX_STEP_MOTION else ds
+    path.final = y
+    return path
+
+
+def _bisect_jump(system, s_a, y_a, s_b, rest_b):
+    """Bisect [s_a, s_b]: the last continuous rest and the first s where the mechanism
+    leaves (lands far away, or its branch has turned into a saddle it would stall on)."""
+    y_b = None if rest_b is None else rest_b.state
+    while s_b - s_a > JUMP_BRACKET * max(1.0, abs(s_a)):
+        s_m = 0.5 * (s_a + s_b)
+        try:
+            rest_m = flow_to_rest(system, y_a, s_m, push_offs=0)
+        except Stalled:
+            s_b = s_m
+            continue
+        if y_b is None or angle_distance(rest_m.state, y_a) < angle_distance(rest_m.state, y_b):
+            s_a, y_a = s_m, rest_m.state
+        else:
+            s_b, y_b = s_m, rest_m.state
+    try:
+        rest_b = flow_to_rest(system, y_a, s_b, push_offs=0)
+    except Stalled:
+        # a saddle: escaping it right at the event is a flow of time ~ 1 / lambda; the
+        # landing is taken a little further on, where lambda is not tiny
+        s_land = min(1.0, s_b + LANDING_OFFSET) if s_b >= s_a else s_b
+        rest_b = flow_to_rest(system, y_a, s_land)
+    if angle_distance(rest_b.state, y_a) <= JUMP_DISTANCE:
+        return None
+    s_star, solved = critical_point_in(system, y_a, s_a, s_b)
+    kind = classify(system, y_a, s_a)
+    return ReferenceJump(s=s_star, s_before=s_a, s_after=s_b, departure=y_a,
+                         landing=rest_b.state, kind=kind, solved=solved,
+                         ambiguous=rest_b.ambiguous)
+
+
+def critical_point_in(system, y_a, s_a, s_b, slack=1e-10):
+    """Solve {grad U = 0, det H = 0} from the bracket; (s, solved) if it lands in it."""
+    if isinstance(system, NeckSystem):
+        z0 = np.concatenate([y_a, system.multipliers(y_a, s_a), [s_a]])
+    else:
+        z0 = np.concatenate([y_a, [s_a]])
+    with np.errstate(all='ignore'):
+        sol = root(system.critical_residual, z0, method='hybr', options={'xtol': 1e-14})
+    s = float(sol.x[-1])
+    if sol.success and s_a - slack <= s <= s_b + slack:
+        return s, True
+    return 0.5 * (s_a + s_b), False
+
+
+def classify(system, y, s, h=1e-6):
+    """'branch_point' if the critical mode is orthogonal to dG/ds, else 'fold'."""
+    _, modes = system.stability(y, s)
+    psi = modes[:, 0]
+    if isinstance(system, NeckSystem):
+        mu = system.multipliers(y, s)
+        g_s = (system.lagrangian_gradient(y, mu, s + h)
+               - system.lagrangian_gradient(y, mu, s - h)) / (2 * h)
+    else:
+        g_s = (system.gradient(y, s + h) - system.gradient(y, s - h)) / (2 * h)
+    norm = float(np.linalg.norm(g_s))
+    if norm == 0.0 or abs(float(psi @ g_s)) < 1e-6 * norm * float(np.linalg.norm(psi)):
+        return 'branch_point'
+    return 'fold'
+
+
+def all_module_equilibria(params):
+    """Every equilibrium of one module by the multi-start oracle: [(theta, stable)]."""
+    result = oracle_equilibria(params)
+    return [(np.array(q), st) for q, st in zip(result.points, result.stable)]

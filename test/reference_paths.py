@@ -43,7 +43,7 @@ from oracle_solver import oracle_equilibria
 
 TWO_PI = 2.0 * math.pi
 #: Width in s of the bracket a jump is bisected to.
-JUMP_BRACKET = 1e-11
+JUMP_BRACKET = 1e-9
 #: A continuous step moves at most this far (rad, max norm) before it is split.
 MAX_STEP_MOTION = 0.02
 #: Steps in s: first and largest, and the smallest before a suspicious step is bisected.
@@ -192,7 +192,7 @@ class ModuleSystem:
             if not np.all(np.isfinite(step)) or np.max(np.abs(step)) > 0.5:
                 return t, False
             t = t - step
-            if np.max(np.abs(step)) < 1e-14:
+            if np.max(np.abs(step)) < 1e-14 + rounding_radius(self, t, s):
                 return t, bool(np.max(np.abs(self.gradient(t, s))) <= 1e-11 * scale)
         return t, False
 
@@ -206,7 +206,8 @@ class ModuleSystem:
         if not ok:
             return None
         low = np.linalg.eigvalsh(self.hessian(star, s))[0]
-        return star if low > self.rate(s) * float(np.linalg.norm(star - t)) else None
+        r = float(np.linalg.norm(star - t))
+        return star if low > 0 and (low > self.rate(s) * r or r <= rounding_radius(self, star, s)) else None
 
     def on_saddle(self, t, s):
         return stalled_on_saddle(self, t, s)
@@ -399,7 +400,7 @@ class NeckSystem:
             if not np.all(np.isfinite(step)) or np.max(np.abs(step[:m])) > 0.5:
                 return z[:m], False
             z = z - step
-            if np.max(np.abs(step[:m])) < 1e-13:
+            if np.max(np.abs(step[:m])) < 1e-13 + rounding_radius(self, z[:m], s):
                 f, _ = self._kkt(z, s)
                 return z[:m], bool(np.max(np.abs(f[:m])) <= 1e-10 * scale
                                    and np.max(np.abs(f[m:])) <= 1e-12)
@@ -430,7 +431,8 @@ class NeckSystem:
             return None
         low = np.linalg.eigvalsh(self.reduced(star, s)[0])[0]
         bound = 4.0 * self.n * self.rate(s)
-        return star if low > bound * float(np.linalg.norm(star - theta)) else None
+        r = float(np.linalg.norm(star - theta))
+        return star if low > 0 and (low > bound * r or r <= rounding_radius(self, star, s)) else None
 
     def on_saddle(self, theta, s):
         return stalled_on_saddle(self, theta, s)
@@ -456,6 +458,14 @@ class NeckSystem:
 
 
 # -- the overdamped flow and the quasi-static path ----------------------------------------
+
+def rounding_radius(system, y, s):
+    """How far a critical point is defined at all: the gradient's rounding error
+    (~1e-14 of the energy scale) over the smallest |eigenvalue| of the stability matrix.
+    Closer than this, no flow and no Newton step can tell positions apart."""
+    values, _ = system.stability(y, s)
+    return 1e-14 * system.rate(s) / max(float(np.min(np.abs(values))), 1e-300)
+
 
 def stalled_on_saddle(system, y, s):
     """(saddle, unstable mode) if y lies on a saddle's stable set (numerically: no
@@ -504,7 +514,9 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
                 raise Stalled(f'stalled on a saddle at s={s!r}')
             return _push_off(system, *stalled, s, push_offs)
         target = 0.1 * system.force(y, s)
-        if elapsed > MAX_FLOW_TIME:
+        if target < 1e-14 and system.stability(y, s)[0][0] > 0:
+            return Rest(y)              # at rest to rounding: nothing moves it further
+        if elapsed > MAX_FLOW_TIME or target < 1e-14:
             raise NoRest(f'no certified rest at s={s!r} from {y0} after t={elapsed:g}')
         base = y if anchor is None else anchor
         atol = 1e-14 if anchor is None else 1e-10 * float(np.max(np.abs(y - anchor)))
@@ -570,6 +582,8 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
             rest = None
         if rest is None:
             jump = _bisect_jump(system, s, y, s_new, None)
+            if jump is None:
+                raise NoRest(f'the branch became a saddle near s={s_new!r} but no jump found')
             path.jumps.append(jump)
             s, y, slope, ds = jump.s_after, jump.landing, None, FIRST_STEP
             continue
@@ -593,20 +607,17 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
 
 
 def _bisect_jump(system, s_a, y_a, s_b, rest_b):
-    """Bisect [s_a, s_b]: the last continuous rest and the first s where the mechanism
-    leaves (lands far away, or its branch has turned into a saddle it would stall on)."""
+    """Bisect [s_a, s_b] on whether the branch's minimum still continues next to the last
+    rest (see ``_nearby_minimum``); then the overdamped flow from the last rest with the
+    parameters at the bracket's end decides: a jump only if it lands far away."""
     y_b = None if rest_b is None else rest_b.state
     while s_b - s_a > JUMP_BRACKET * max(1.0, abs(s_a)):
         s_m = 0.5 * (s_a + s_b)
-        try:
-            rest_m = flow_to_rest(system, y_a, s_m, push_offs=0)
-        except Stalled:
-            s_b = s_m
-            continue
-        if y_b is None or angle_distance(rest_m.state, y_a) < angle_distance(rest_m.state, y_b):
-            s_a, y_a = s_m, rest_m.state
-        else:
-            s_b, y_b = s_m, rest_m.state
+        near = _nearby_minimum(system, y_a, s_m, y_b)
+        if near is not None:
+            s_a, y_a = s_m, near
+        else:           # no minimum continues the branch here: the flow leaves (checked
+            s_b = s_m   # below at the bracket's end, where the landing is computed)
     try:
         rest_b = flow_to_rest(system, y_a, s_b, push_offs=0)
     except Stalled:
@@ -621,6 +632,20 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b):
     return ReferenceJump(s=s_star, s_before=s_a, s_after=s_b, departure=y_a,
                          landing=rest_b.state, kind=kind, solved=solved,
                          ambiguous=rest_b.ambiguous)
+
+
+def _nearby_minimum(system, y_a, s_m, y_b):
+    """Inside a jump's bracket, the branch's minimum at s_m next to y_a, if Newton finds
+    one closer to y_a than the landing, lower in energy than y_a: by the fold's normal
+    form the previous minimum y_a lies on the far side of it from the saddle that the
+    fold merges it with, inside its basin, so the flow from y_a ends there (the flow
+    itself is slow here: lambda_min -> 0)."""
+    star, ok = system.critical_point(y_a, s_m)
+    if not ok or system.stability(star, s_m)[0][0] <= 0:
+        return None
+    if y_b is not None and angle_distance(star, y_a) >= angle_distance(star, y_b):
+        return None
+    return star if system.energy(star, s_m) <= system.energy(y_a, s_m) else None
 
 
 def critical_point_in(system, y_a, s_a, s_b, slack=1e-10):

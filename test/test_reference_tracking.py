@@ -81,3 +81,189 @@ def test_issue_fold_start_moving_away_stays_on_the_lower_branch():
     """`--rho 0.8745334409192281 --to-rho 0.5` from (-0.29676, -0.29676): 1e-9 inside C2."""
     got, ref = compare_module(fig8(0.8745334409192281), fig8(0.5), [-0.29676, -0.29676])
     assert ref.jumps == [] and np.all(ref.final < 0)
+
+
+def fold_rho_inside(lower=True):
+    """C2 (the fold of fig. 8a) from the reference's own critical-point solve, rounded
+    to the last double inside the lower branch's range (rho below the fold)."""
+    system = ModuleSystem(fig8(0.87), fig8(0.88))
+    path = quasi_static_path(system, [-0.3, -0.3])
+    (jump,) = path.jumps
+    rho = 0.87 + 0.01 * jump.s
+    return math.nextafter(rho, 0.0) if lower else rho
+
+
+def test_start_exactly_on_the_fold_moving_away_stays():
+    rho = fold_rho_inside()
+    start = settle_reference(ModuleSystem(fig8(rho)), [-0.2967, -0.2967]).state
+    got, ref = compare_module(fig8(rho), fig8(0.5), start)
+    assert ref.jumps == []
+
+
+def test_start_1e6_inside_the_fold_moving_away_stays():
+    got, ref = compare_module(fig8(0.874533441919229 - 1e-6), fig8(0.5), [-0.2967, -0.2967])
+    assert ref.jumps == []
+
+
+@pytest.mark.parametrize('theta, params', [
+    ([-0.0501, -0.0501], fig8(0.5)),                      # between the two stable branches
+    ([-2.9918, -0.0498], fig8(0.5)),
+])
+def test_settle_started_on_a_saddle_lands_on_the_lower_energy_minimum(theta, params):
+    system = ModuleSystem(params)
+    from scipy.optimize import root
+    saddle = root(lambda t: system.gradient(t, 0.0), theta, tol=1e-14).x
+    assert np.linalg.eigvalsh(system.hessian(saddle, 0.0))[0] < 0
+    ref = settle_reference(system, saddle).state
+    got = settle(params, saddle)
+    assert angle_distance(got.theta, ref) <= FINAL_TOL, (got.theta, ref)
+
+
+# -- the reference itself against known values ------------------------------------------------
+
+C1_RHO = 0.1551013762561726      # eq. (15) of the paper at F = 5 (as test_cli, test_figures)
+C2_RHO = 0.874533441919229       # eq. (16)
+
+
+def test_reference_finds_fig8a_c1_and_c2():
+    down = quasi_static_path(ModuleSystem(fig8(0.5), fig8(0.1)), [-1.0, -1.0])
+    (c1,) = down.jumps
+    assert c1.kind == 'branch_point'
+    assert abs((0.5 - 0.4 * c1.s) - C1_RHO) < 1e-9
+    assert np.all(np.cos(c1.landing) < np.cos(1.0)) or np.all(np.sin(c1.landing) > 0.5)
+    up = quasi_static_path(ModuleSystem(fig8(0.5), fig8(1.2)), [-1.0, -1.0])
+    (c2,) = up.jumps
+    assert c2.kind == 'fold'
+    assert abs((0.5 + 0.7 * c2.s) - C2_RHO) < 1e-9
+
+
+def test_reference_derivatives_are_consistent():
+    """Gradient and Hessian of the reference against central differences of its energy,
+    and the neck reference with N = 1 against the module formulas."""
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        p = ModuleParams(rho=rng.uniform(0.3, 1.5), L1=rng.uniform(0.5, 1.5),
+                         L2=rng.uniform(0.5, 1.5), ka=rng.uniform(50, 150),
+                         kb=rng.uniform(50, 150), kc=rng.uniform(50, 150),
+                         f3x=rng.uniform(-5, 5), f3y=rng.uniform(-5, 5),
+                         f4x=rng.uniform(-5, 5), f4y=rng.uniform(-5, 5),
+                         m1=rng.uniform(0, 0.5), m2=rng.uniform(0, 0.5))
+        module, neck = ModuleSystem(p), NeckSystem([p])
+        t = rng.uniform(-math.pi, math.pi, 2)
+        h = 1e-6
+        fd = [(module.energy(t + h * e, 0) - module.energy(t - h * e, 0)) / (2 * h)
+              for e in np.eye(2)]
+        assert np.allclose(module.gradient(t, 0), fd, rtol=1e-6, atol=1e-6)
+        fd_h = np.array([(module.gradient(t + h * e, 0) - module.gradient(t - h * e, 0)) / (2 * h)
+                         for e in np.eye(2)])
+        assert np.allclose(module.hessian(t, 0), fd_h, rtol=1e-6, atol=1e-5)
+        assert neck.energy(t, 0) == pytest.approx(module.energy(t, 0), abs=1e-10)
+        assert np.allclose(neck.gradient(t, 0), module.gradient(t, 0), atol=1e-10)
+
+
+# -- seeded random paths ---------------------------------------------------------------------
+
+def random_module(rng, load=5.0):
+    return ModuleParams(rho=rng.uniform(0.3, 1.4), L2=rng.uniform(0.8, 1.25),
+                        ka=rng.uniform(70, 130), kb=rng.uniform(70, 130), kc=rng.uniform(70, 130),
+                        f3x=rng.uniform(-1, 1) * load, f3y=rng.uniform(-2, 2) * load,
+                        f4x=rng.uniform(-1, 1) * load, f4y=rng.uniform(-2, 2) * load)
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_random_paths_and_round_trips(seed):
+    rng = np.random.default_rng(100 + seed)
+    start, end = random_module(rng), random_module(rng)
+    theta = rng.uniform(-math.pi, math.pi, 2)
+    there, _ = compare_module(start, end, theta)
+    compare_module(end, start, there.final.theta)           # and back
+
+
+@pytest.mark.parametrize('seed', range(2))
+def test_random_force_driven_paths(seed):
+    rng = np.random.default_rng(200 + seed)
+    start = random_module(rng)
+    end = start.with_(f3y=rng.uniform(-15, 15), f4y=rng.uniform(-15, 15),
+                      f3x=rng.uniform(-5, 5), f4x=rng.uniform(-5, 5))
+    compare_module(start, end, rng.uniform(-math.pi, math.pi, 2))
+
+
+@pytest.mark.parametrize('scale', [1e-6, 1e6])
+def test_huge_and_tiny_loads_scaled_module(scale):
+    """Lengths by 1e-3 and stiffnesses by `scale`: the same dimensionless path."""
+    rng = np.random.default_rng(7)
+    base_a, base_b = random_module(rng), random_module(rng)
+
+    def scaled(p):
+        L = 1e-3
+        return ModuleParams(rho=p.rho * L, L1=p.L1 * L, L2=p.L2 * L, ka=p.ka * scale,
+                            kb=p.kb * scale, kc=p.kc * scale, f3x=p.f3x * scale * L,
+                            f3y=p.f3y * scale * L, f4x=p.f4x * scale * L, f4y=p.f4y * scale * L)
+    compare_module(scaled(base_a), scaled(base_b), [0.5, 0.5])
+
+
+# -- asymmetries around the branch point C1 --------------------------------------------------
+
+ASYMMETRIES = [('f3y', 5.0), ('ka', 100.0), ('L2', 1.0), ('f3x', 5.0)]
+
+
+@pytest.mark.parametrize('eps', [1e-2, 1e-6, 1e-9])
+@pytest.mark.parametrize('name, base', ASYMMETRIES)
+def test_asymmetries_around_c1(name, base, eps):
+    value = base * (1.0 + eps) if name != 'f3x' else base * eps
+    compare_module(fig8(0.5, **{name: value}), fig8(0.1, **{name: value}), [-1.0, -1.0])
+
+
+# -- hypothesis: every reported jump lands on a stable equilibrium, a finite distance away -----
+
+from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=25, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2 ** 32 - 1))
+def test_every_reported_jump_lands_on_a_stable_equilibrium(seed):
+    rng = np.random.default_rng(seed)
+    start, end = random_module(rng), random_module(rng)
+    got = track_module(start, end, rng.uniform(-math.pi, math.pi, 2))
+    system = ModuleSystem(start, end)
+    for jump in got.jumps:
+        assert angle_distance(jump.to_theta, jump.from_theta) > 1e-3, jump
+        star, ok = system.critical_point(jump.to_theta, jump.s)
+        assert ok and angle_distance(star, jump.to_theta) < 1e-5, jump
+        assert system.is_stable_equilibrium(star, jump.s), jump
+
+
+# -- necks ----------------------------------------------------------------------------------
+
+def compare_neck(start, end, theta):
+    ref = quasi_static_path(NeckSystem(start.modules, end.modules), np.ravel(theta))
+    got = track_stack(start, end, np.asarray(theta, dtype=float).reshape(-1, 2))
+    assert_same_path(got, ref)
+    return got, ref
+
+
+def upright_neck(n, load, rho=0.6, **bottom):
+    modules = [ModuleParams.paper(rho) for _ in range(n)]
+    if bottom:
+        modules[0] = modules[0].with_(**bottom)
+    modules[-1] = modules[-1].with_(f3y=load, f4y=load)
+    return Stack(tuple(modules))
+
+
+def upright_theta(n, rho=0.6):
+    t = math.acos(rho)      # rho_i + rho_i+1 = 2 rho over L1 + L2 = 2
+    return np.full((n, 2), t)
+
+
+def test_issue_neck_n3_nearly_symmetric_head_load():
+    """N = 3 upright, m0 ka = 100.0000001, head load 0 -> -40 N."""
+    compare_neck(upright_neck(3, 0.0, ka=100.0000001), upright_neck(3, -40.0, ka=100.0000001),
+                 upright_theta(3))
+
+
+def test_neck_n2_random_rho_path():
+    rng = np.random.default_rng(31)
+    start = Stack((random_module(rng, 1.0).with_(rho=0.7), random_module(rng, 1.0).with_(rho=0.7)))
+    end = start.with_module(0, rho=0.9).with_module(1, rho=0.5)
+    compare_neck(start, end, np.full((2, 2), 0.8))

@@ -17,6 +17,7 @@ def test_unloaded_module_to_rho_beyond_L_publishes_no_jump(harness):
     h.wait_status(lambda v: float(v['rho']) == 1.3)
     assert h.stable[-1].data is True
     assert h.node.counters['jumps_total'] == 0 and h.jumps == []
+    h.spin_until(lambda: h.diagnostics, what='a diagnostics message (1 Hz)')
     assert h.counter('tracking_failures') == 0
 
 

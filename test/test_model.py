@@ -378,3 +378,19 @@ def test_theta_of_wrong_shape_is_refused(function, theta):
 def test_single_point_functions_refuse_batches(function):
     with pytest.raises(ValueError):
         function(ModuleParams(rho=0.5), np.zeros((3, 2)))
+
+
+@pytest.mark.parametrize('rho', [1.25, 1e-50, 1e50, np.float64(0.3), 2, 0.0, -1.0, 1e-60, 1e51,
+                                 np.nan, np.inf, '0.5', None], ids=repr)
+def test_with_rho_is_with_rho_changed_and_refuses_the_same(rho):
+    """The actuator's cheap copy validates rho exactly as a full rebuild does."""
+    p = ModuleParams(rho=0.75, L2=1.2, ka=80.0, f3y=-1.0, m1=0.1)
+    try:
+        expected = p.with_(rho=rho)
+    except InvalidParameterError as exc:
+        with pytest.raises(InvalidParameterError) as info:
+            p.with_rho(rho)
+        assert str(info.value) == str(exc)
+        return
+    moved = p.with_rho(rho)
+    assert moved == expected and type(moved.rho) is float and p.rho == 0.75

@@ -138,3 +138,28 @@ def test_stability_is_the_same_in_either_coordinates(seed, n):
     eig = ref.eigenvalues(y, 0.0)
     assert np.max(np.abs(state.eigenvalues - eig)) < 1e-9 * np.max(np.abs(eig))
     assert state.stable
+
+
+@pytest.mark.parametrize('n', [1, 2, 3])
+def test_the_fast_path_takes_a_command_exactly_when_the_tracker_takes_it_in_one_step(n):
+    """The one-step fast path applies the tracker's acceptance rules: it answers exactly
+    the commands the generic tracker covers in one step, with the tracker's state."""
+    from tensegrity_ros.core.stack import _whole_command_step
+    rng = np.random.default_rng(200 + n)
+    taken = declined = 0
+    for size in (1e-4, 1e-3, 1e-2, 3e-2, 1e-1):
+        stack = random_stack(rng, n)
+        state = settle_stack(stack, np.full((n, 2), 0.75))
+        i = int(rng.integers(n))
+        end = stack.with_module(i, rho=stack.modules[i].rho + size * rng.choice((-1.0, 1.0)))
+        path = StackPath(stack, end)
+        fast = _whole_command_step(path, state.state, continuation.TrackerSettings(), state)
+        full = continuation.track(StackPath(stack, end), state.state)
+        one_step = full.status == 'ok' and full.steps == 1 and not full.events
+        assert (fast is not None) == one_step, (n, size, full.steps)
+        if fast is not None:
+            assert wrapped(fast[0], full.state) < 1e-10
+            assert np.max(np.abs(fast[1] - full.eigenvalues)) < 1e-10 * abs(full.eigenvalues[-1])
+        taken += fast is not None
+        declined += fast is None
+    assert taken and declined           # both sides of the rule were exercised

@@ -164,6 +164,43 @@ def _inf_norm(v):
     return max(map(abs, v.tolist()), default=0.0)
 
 
+# -- the acceptance rules of one step (public: a problem's own fast path uses these) --
+
+def positive_definite(eigenvalues, scale, settings):
+    """A verified minimum: lambda_min > definiteness_tol * max(|lambda_max|, scale / 1000)."""
+    return eigenvalues[0] > settings.definiteness_tol * max(abs(eigenvalues[-1]), scale * 1e-3)
+
+
+def step_bound(reach, lam, rate, settings):
+    """The largest step in s the step rules allow from a state whose tangent has step
+    norm ``reach`` and smallest eigenvalue ``lam`` changing at ``rate`` = d lambda / ds:
+    the state moves by at most max_state_step, lambda_min is predicted to shrink to no
+    less than eigenvalue_shrink of itself."""
+    ds = settings.max_state_step / max(reach, 1e-300)
+    if rate < 0.0:
+        ds = min(ds, (1.0 - settings.eigenvalue_shrink) * lam / -rate)
+    return ds
+
+
+def forward_rate(eigenvalues, y, s, tangent, lam):
+    """d lambda_min / ds along the branch, by a forward difference of ``eigenvalues(y, s)``."""
+    h = 1e-6
+    return (eigenvalues(y + h * tangent, s + h)[0] - lam) / h
+
+
+def near_prediction(miss, reach, ds, settings):
+    """The corrector stayed on the branch: it moved the prediction by at most half the
+    predicted step (``miss`` and ``reach`` are step norms of the correction and tangent)."""
+    return miss <= 0.5 * ds * reach + settings.same_state_tol
+
+
+def energy_consistent(energy0, energy1, energy_s0, energy_s1, ds, scale):
+    """The envelope theorem: along one branch dE/ds = U_s (a jump to another breaks it)."""
+    expected = 0.5 * (energy_s0 + energy_s1) * ds
+    slack = 1e-9 * (abs(energy0) + abs(energy1) + scale) + 0.5 * abs((energy_s1 - energy_s0) * ds)
+    return abs((energy1 - energy0) - expected) <= slack
+
+
 class _Tracker:
     """One tracking run; holds the problem, the scales and the settings."""
 
@@ -188,7 +225,7 @@ class _Tracker:
         return _inf_norm(self.problem.residual(y, s)) <= factor * self.settings.residual_tol * self.scale
 
     def definite(self, eigenvalues):
-        return eigenvalues[0] > self.settings.definiteness_tol * max(abs(eigenvalues[-1]), self.scale * 1e-3)
+        return positive_definite(eigenvalues, self.scale, self.settings)
 
     def newton(self, y, s):
         """Newton corrector; ``None`` unless it contracts and converges.
@@ -220,14 +257,11 @@ class _Tracker:
         return -_solve(self.problem.jacobian(y, s), self.problem.residual_s(y, s))
 
     def energy_consistent(self, y0, s0, y1, s1):
-        """The envelope theorem: along one branch dE/ds = U_s (a jump to another breaks it)."""
+        """:func:`energy_consistent` between two states."""
         problem = self.problem
-        energy0, energy1 = problem.energy(y0, s0), problem.energy(y1, s1)
-        energy_s0, energy_s1 = problem.energy_s(y0, s0), problem.energy_s(y1, s1)
-        ds = s1 - s0
-        expected = 0.5 * (energy_s0 + energy_s1) * ds
-        slack = 1e-9 * (abs(energy0) + abs(energy1) + self.scale) + 0.5 * abs((energy_s1 - energy_s0) * ds)
-        return abs((energy1 - energy0) - expected) <= slack
+        return energy_consistent(problem.energy(y0, s0), problem.energy(y1, s1),
+                                 problem.energy_s(y0, s0), problem.energy_s(y1, s1),
+                                 s1 - s0, self.scale)
 
     def try_step(self, y, s, tangent, ds):
         """Corrector at s + ds; returns (state, eigenvalues, reason) with reason '' if accepted."""
@@ -236,7 +270,8 @@ class _Tracker:
         y1 = self.newton(predicted, s1)
         if y1 is None:
             return None, None, 'newton'
-        if self.step_norm(y1 - predicted) > 0.5 * ds * self.step_norm(tangent) + self.settings.same_state_tol:
+        if not near_prediction(self.step_norm(y1 - predicted), self.step_norm(tangent), ds,
+                               self.settings):
             return None, None, 'far'
         if not self.energy_consistent(y, s, y1, s1):
             return None, None, 'energy'
@@ -273,11 +308,10 @@ class _Tracker:
                 tangent = self.tangent(y, s)
             except np.linalg.LinAlgError:
                 tangent = np.zeros_like(y)
-            ds = min(ds, s_end - s, cfg.max_state_step / max(self.step_norm(tangent), 1e-300))
             if rate is None:
                 rate = self.eigenvalue_rate(y, s, tangent, eigenvalues[0])
-            if rate < 0.0:
-                ds = min(ds, (1.0 - cfg.eigenvalue_shrink) * eigenvalues[0] / -rate)
+            ds = min(ds, s_end - s,
+                     step_bound(self.step_norm(tangent), eigenvalues[0], rate, cfg))
             y1, eig1, reason = self.try_step(y, s, tangent, ds)
             if not reason:
                 rate = self.last_rate = (eig1[0] - eigenvalues[0]) / ds
@@ -334,8 +368,7 @@ class _Tracker:
 
     def eigenvalue_rate(self, y, s, tangent, lam):
         """d lambda_min / ds along the branch, by a small forward difference."""
-        h = 1e-6
-        return (self.eigenvalues(y + h * tangent, s + h)[0] - lam) / h
+        return forward_rate(self.eigenvalues, y, s, tangent, lam)
 
     def eigenvalues(self, y, s):
         """Ascending stability eigenvalues (without modes where the problem can)."""

@@ -133,11 +133,23 @@ class Neck:
 
     margin_unit = 'N/m'
 
+    def __init__(self):
+        self._last = None           # (modules, Stack) of the last path's end
+
+    def _stack(self, modules):
+        """The :class:`Stack` of ``modules``: the last path's end is the next start, so
+        its parameter values (kept on the Stack) are computed once, not twice."""
+        if self._last is None or self._last[0] != modules:
+            self._last = (modules, Stack(modules))
+        return self._last[1]
+
     def settle(self, modules, thetas):
         return settle_stack(Stack(modules), thetas)
 
     def track(self, start, end, state):
-        track = track_stack(Stack(start), Stack(end), state)
+        start = self._stack(start)
+        self._last = (end, Stack(end))
+        track = track_stack(start, self._last[1], state)
         jumps = [(j.kind, j.s, j.stack.modules, j.from_theta, j.to_theta, j.ambiguous)
                  for j in track.jumps]
         return Motion(track.final, track.end.modules, jumps, track.status, track.message)

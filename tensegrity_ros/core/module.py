@@ -117,6 +117,17 @@ class ModuleParams:
         """A copy with some parameters changed (validated)."""
         return replace(self, **changes)
 
+    def with_rho(self, rho):
+        """A copy with actuator length ``rho``: only rho is validated (the other values
+        were when ``self`` was built), so an actuator command costs a copy, not a
+        re-validation of every field.  Same result and errors as ``with_(rho=rho)``."""
+        if not (isinstance(rho, float) and MIN_MAGNITUDE <= rho <= MAX_MAGNITUDE):
+            return self.with_(rho=rho)          # the full check (and its usual error)
+        moved = object.__new__(type(self))
+        moved.__dict__.update(self.__dict__)
+        moved.__dict__['rho'] = float(rho)
+        return moved
+
 
 def _angles(theta):
     theta = np.asarray(theta, dtype=float)

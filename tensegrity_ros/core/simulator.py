@@ -213,7 +213,7 @@ class Simulator:
         if not any(self._slots[i].limits.max_rho_rate > 0.0 for i in targets):
             for index in targets:
                 self._slots[index].target = None
-            ends = {i: self.modules[i].with_(rho=rho) for i, rho in targets.items()}
+            ends = {i: self.modules[i].with_rho(rho) for i, rho in targets.items()}
             moved = self._move(ends, cause, next(iter(targets)))
         else:
             moved = ev.combined(self._retarget(i, rho, now_ns, cause)
@@ -344,7 +344,7 @@ class Simulator:
         slot = self._slots[index]
         if slot.limits.max_rho_rate <= 0.0:
             slot.target = None
-            return self._move({index: self.modules[index].with_(rho=rho)}, cause, index)
+            return self._move({index: self.modules[index].with_rho(rho)}, cause, index)
         advanced = self._advance_module(index, now_ns)
         slot.target = None if rho == self.modules[index].rho else rho
         slot.cause = cause
@@ -365,7 +365,7 @@ class Simulator:
         else:
             new_rho = rho + math.copysign(rate * dt, target - rho)
         slot.stamp_ns = now_ns
-        moved = self._move({index: self.modules[index].with_(rho=new_rho)}, slot.cause, index)
+        moved = self._move({index: self.modules[index].with_rho(new_rho)}, slot.cause, index)
         if moved.status == ev.FAILED:
             slot.target = None
         return moved

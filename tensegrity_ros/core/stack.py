@@ -29,6 +29,7 @@ from __future__ import annotations
 import cmath
 import functools
 import math
+import operator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,6 +42,7 @@ from .continuation import TrackerSettings
 from .module import ModuleParams, PARAMETER_NAMES, InvalidParameterError
 
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
+_PARAMETERS_OF = operator.attrgetter(*PARAMETER_NAMES)     # a module's parameters, in order
 _FIXED = 2          # A1(0) and A2(0) are the first two entries of the node table
 # Landing flow near kinematic singularities: the constraint Gram matrix (entries ~1)
 # is damped by up to _DAMPING once its smallest eigenvalue falls below _DAMPING_ONSET.
@@ -90,8 +92,7 @@ class Stack:
 
     @functools.cached_property
     def _vector(self):
-        return np.array([[getattr(m, name) for name in PARAMETER_NAMES]
-                         for m in self.modules], dtype=float).ravel()
+        return np.array([_PARAMETERS_OF(m) for m in self.modules], dtype=float).ravel()
 
     def from_vector(self, values):
         values = np.asarray(values, dtype=float).reshape(len(self), len(PARAMETER_NAMES))
@@ -149,6 +150,10 @@ class _Topology:
         ends = np.array(self.element_ends, dtype=int).reshape(-1, 2)
         self.element_rods = rods[ends[:, 0]] - rods[ends[:, 1]]          # (elements, 2N)
         self.element_rods_t = np.ascontiguousarray(self.element_rods.T)
+        # complex copies for products with rod vectors (no real-to-complex cast per call)
+        self.element_rods_c = self.element_rods.astype(complex)
+        self.element_rods_tc = self.element_rods_t.astype(complex)
+        self.node_rods_c = rods.astype(complex)
         self.element_base = base[ends[:, 0]] - base[ends[:, 1]]
         self.chord_rods = self.element_rods[len(springs):]
         self.n_springs = len(springs)
@@ -214,8 +219,9 @@ class _Values:
     """The path's parameters at one s, or their rates along s (all linear in the
     parameter vector, so the values at s are those at 0 plus s times the rates)."""
 
-    __slots__ = ('s', 'k', 'chord', 'chord_squares', 'rod', 'rod_loads', 'base_load', 'rho0',
-                 'shift', 'weights')
+    _FIELDS = ('k', 'chord', 'chord_squares', 'rod', 'rod_loads', 'base_load', 'rho0', 'shift',
+               'weights')
+    __slots__ = ('s', '_scales') + _FIELDS
 
     @classmethod
     def of(cls, top, g, p, s):
@@ -243,12 +249,28 @@ class _Values:
                                                             stack._vector, None)
         return found
 
+    def scales(self, top):
+        """(l_ref, f_ref, state_weights) of a path starting at these values (computed
+        once per start: they depend on its rods and springs only).
+
+        l_ref is the mean rod length; multipliers are stored in units of f_ref = max k
+        l_ref, so that the state is dimensionless.  Step sizes are node displacements
+        (in l_ref), as in node coordinates: a node is moved by at most the summed
+        lengths of the rods that build it times max |d phi|."""
+        try:
+            return self._scales
+        except AttributeError:
+            l_ref = float(self.rod.sum()) / top.n_rods
+            weights = top.angle_mask * (float((top.node_rods @ self.rod).max()) / l_ref)
+            self._scales = (l_ref, float(self.k.max()) * l_ref, weights)
+            return self._scales
+
     @classmethod
     def difference(cls, one, zero):
         """one - zero: the rates along s of a straight path."""
         self = cls()
         self.s = None
-        for name in cls.__slots__[1:]:
+        for name in cls._FIELDS:
             setattr(self, name, getattr(one, name) - getattr(zero, name))
         return self
 
@@ -284,12 +306,12 @@ class _Point:
         self.key, self.values = key, values
         self.mu = y[n:] * path.f_ref
         self.rods = values.rod * np.exp(1j * y[:n])
-        diff = self.diff = top.element_rods @ self.rods + values.shift
+        diff = self.diff = top.element_rods_c @ self.rods + values.shift
         squares = self.squares = np.abs(diff)
         squares *= squares
         weights = self.weights = values.weights.copy()
         weights[top.n_springs:] = y[n:] * path.f_ref_per_l_ref
-        self.force = top.element_rods_t @ (weights * diff) - values.rod_loads
+        self.force = top.element_rods_tc @ (weights * diff) - values.rod_loads
         self._hessian = self._jc = self._gram = self.rates = None
 
     def gradient(self):
@@ -353,20 +375,14 @@ class StackPath:
         self.topology = top = _topology(len(start))
         self.n = len(start)
         self.size = top.n_rods + top.n_chords
-        self.p0 = start.vector()
-        self.dp = end.vector() - self.p0
+        self.p0 = start._vector                 # read only (a Stack's own vector)
+        self.dp = end._vector - self.p0
         self.g = start.modules[0].g
-        rods = self.p0[top.rod_index]
-        self.l_ref = float(rods.sum()) / top.n_rods
-        # multipliers are stored in units of f_ref, so that the state is dimensionless
-        self.f_ref = float(self.p0[top.spring_index].max()) * self.l_ref
+        zero, one = _Values.of_stack(start, top), _Values.of_stack(end, top)
+        self.l_ref, self.f_ref, self.state_weights = zero.scales(top)
         self.half_inv_l_ref = 0.5 / self.l_ref
         self.f_ref_per_l_ref = self.f_ref / self.l_ref
         self.inv_l_ref = 1.0 / self.l_ref
-        # Step sizes as node displacements (in l_ref), as in node coordinates: a node is
-        # moved by at most the summed lengths of the rods that build it times max |d phi|.
-        self.state_weights = top.angle_mask * (float((top.node_rods @ rods).max()) / self.l_ref)
-        zero, one = _Values.of_stack(start, top), _Values.of_stack(end, top)
         self._zero_values = zero
         self._rate_values = _Values.difference(one, zero)
         self._values = {0.0: zero, 1.0: one}
@@ -413,8 +429,8 @@ class StackPath:
     def nodes(self, y, s):
         """All node positions (nodes x 2) including the fixed A1(0), A2(0)."""
         top = self.topology
-        x = top.node_rods @ self.point(y, s).rods + top.node_base * self.at(s).rho0
-        return np.column_stack([x.real, x.imag])
+        x = top.node_rods_c @ self.point(y, s).rods + top.node_base * self.at(s).rho0
+        return x.view(float).reshape(-1, 2)           # (x, y) pairs: complex memory layout
 
     # -- PathProblem ---------------------------------------------------------------
     def residual(self, y, s):
@@ -436,7 +452,7 @@ class StackPath:
         if p.rates is None:
             rate = self._rate_values
             d_rods = p.rods * (rate.rod / p.values.rod)
-            p.rates = d_rods, self.topology.element_rods @ d_rods + rate.shift
+            p.rates = d_rods, self.topology.element_rods_c @ d_rods + rate.shift
         return p.rates
 
     def residual_s(self, y, s):
@@ -444,7 +460,7 @@ class StackPath:
         p = self.point(y, s)
         top, rate = self.topology, self._rate_values
         d_rods, d_diff = self._rates(p)
-        d_force = (top.element_rods_t @ (rate.weights * p.diff + p.weights * d_diff)
+        d_force = (top.element_rods_tc @ (rate.weights * p.diff + p.weights * d_diff)
                    - rate.rod_loads)
         d_gradient = (p.rods.conj() * d_force + d_rods.conj() * p.force).imag
         ns = top.n_springs
@@ -561,7 +577,10 @@ class StackPath:
         frame = np.concatenate([[1.0], p.chords(self)])          # module x axes A1 -> A2
         frame = frame / np.abs(frame)
         rods = (p.rods / p.values.rod).reshape(self.n, 2)
-        return np.angle(np.column_stack([rods[:, 0] * frame.conj(), -frame / rods[:, 1]]))
+        local = np.empty((self.n, 2), dtype=complex)
+        local[:, 0] = rods[:, 0] * frame.conj()
+        local[:, 1] = -frame / rods[:, 1]
+        return np.angle(local)
 
     def state_from_angles(self, theta, s):
         """Rod angles from local angles (N x 2), projected onto the constraints."""
@@ -738,55 +757,52 @@ def _newton(path, y, s, tol, iterations):
 
 
 def _whole_command_step(path, y, settings, known=None):
-    """The tracker's first step when it spans the whole command: (state, eigenvalues) at
-    s = 1, or ``None`` wherever the tracker would do anything else.
+    """The tracker's first step when it spans the whole command: (state, eigenvalues,
+    energy, residual) at s = 1, or ``None`` wherever the tracker would do anything else.
 
-    A small command is one continuation step, verified exactly as the tracker verifies
-    a step (:func:`~.continuation.track`): a stable equilibrium at s = 0; the step within
-    ``max_state_step`` and within the eigenvalue-halving bound from d lambda_min / ds;
-    Newton contracting to a point near the prediction; the energy change matching the
-    envelope theorem; the reduced Hessian positive definite at s = 1.  Anything else (a
-    longer command, a soft mode, an event) returns ``None`` and the tracker runs in
-    full.  This is the same work without the tracker's generality (no step loop,
-    no second Newton at s = 0, no re-evaluation of what is already known: ``known`` is
-    the :class:`StackEquilibrium` of ``y`` when it was verified at the start parameters,
-    whose eigenvalues, residual and energy are those at s = 0)."""
+    A small command is one continuation step, accepted by the tracker's own rules
+    (:mod:`.continuation`: :func:`~.continuation.positive_definite`,
+    :func:`~.continuation.step_bound`, :func:`~.continuation.near_prediction`,
+    :func:`~.continuation.energy_consistent`): a stable equilibrium at s = 0, a whole
+    step within the step bound, Newton contracting to a point near the prediction, the
+    energy change matching the envelope theorem, a positive definite reduced Hessian at
+    s = 1.  Anything else (a longer command, a soft mode, an event) returns ``None`` and
+    the tracker runs in full.  What is skipped is the tracker's generality only (no step
+    loop, no second Newton at s = 0, no re-evaluation of what is already known:
+    ``known`` is the :class:`StackEquilibrium` of ``y`` when it was verified at the start
+    parameters, whose eigenvalues, residual and energy are those at s = 0)."""
     cfg = settings
     eigenvalues = path.eigenvalues(y, 0.0) if known is None else known.eigenvalues
     scale = max(abs(eigenvalues[-1]), 1e-300)
-    floor = scale * 1e-3
-
-    def definite(values):
-        return values[0] > cfg.definiteness_tol * max(abs(values[-1]), floor)
-
     tol = cfg.residual_tol * scale
     weights = path.state_weights
     residual0 = _inf_norm(path.residual(y, 0.0)) if known is None else known.residual
-    if not definite(eigenvalues) or residual0 > tol:
+    if not _continuation.positive_definite(eigenvalues, scale, cfg) or residual0 > tol:
         return None
     try:
         tangent = -_solve(path.jacobian(y, 0.0), path.residual_s(y, 0.0))
     except np.linalg.LinAlgError:
         return None
     reach = _inf_norm(weights * tangent)
-    if not reach <= cfg.max_state_step:
+    if not reach <= cfg.max_state_step:       # cheap early out: step_bound below says the same
         return None
     energy0 = path.energy(y, 0.0) if known is None else known.energy
-    energy_s0 = path.energy_s(y, 0.0)
-    h = 1e-6                                  # the tracker's d lambda_min / ds
-    rate = (path.eigenvalues(y + h * tangent, h)[0] - eigenvalues[0]) / h
-    if rate < 0.0 and (1.0 - cfg.eigenvalue_shrink) * eigenvalues[0] < -rate:
+    energy_s0 = path.energy_s(y, 0.0)          # (before the point at y0 is left)
+    rate = _continuation.forward_rate(path.eigenvalues, y, 0.0, tangent, eigenvalues[0])
+    if not _continuation.step_bound(reach, eigenvalues[0], rate, cfg) >= 1.0:
         return None
     predicted = y + tangent
     y1, residual = _newton(path, predicted, 1.0, tol, cfg.newton_iterations)
-    if y1 is None or _inf_norm(weights * (y1 - predicted)) > 0.5 * reach + 1e-9:
+    if y1 is None or not _continuation.near_prediction(_inf_norm(weights * (y1 - predicted)),
+                                                       reach, 1.0, cfg):
         return None
     energy1, energy_s1 = path.energy_and_rate(y1, 1.0)
-    slack = 1e-9 * (abs(energy0) + abs(energy1) + scale) + 0.5 * abs(energy_s1 - energy_s0)
-    if abs((energy1 - energy0) - 0.5 * (energy_s0 + energy_s1)) > slack:
+    if not _continuation.energy_consistent(energy0, energy1, energy_s0, energy_s1, 1.0, scale):
         return None
     eigenvalues1 = path.eigenvalues(y1, 1.0)
-    return (y1, eigenvalues1, energy1, residual) if definite(eigenvalues1) else None
+    if not _continuation.positive_definite(eigenvalues1, scale, cfg):
+        return None
+    return y1, eigenvalues1, energy1, residual
 
 
 def _checked_angles(theta, n):

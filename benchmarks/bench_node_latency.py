@@ -53,6 +53,18 @@ def _ros_env():
     return env
 
 
+
+def _stop(procs):
+    """Ctrl-C every process still running, then wait for it (killed after 10 s)."""
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(2)
+    for p in procs:
+        try:
+            p.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            p.kill()
+
 def _cpu_seconds(pid):
     """User + system CPU time of a process (Linux /proc), or nan."""
     try:
@@ -419,14 +431,7 @@ def main(argv=None):
     finally:
         if driver is not None:
             driver.close()
-        for p in procs:
-            if p.poll() is None:
-                p.send_signal(2)
-        for p in procs:
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        _stop(procs)
 
     ok = True
     load = os.getloadavg()[0] if hasattr(os, 'getloadavg') else float('nan')
@@ -593,14 +598,7 @@ def neck_main(argv=None):
     finally:
         if driver is not None:
             driver.close()
-        for p in procs:
-            if p.poll() is None:
-                p.send_signal(2)
-        for p in procs:
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        _stop(procs)
     load = os.getloadavg()[0]
     print(f'neck (config/neck.yaml), joint_commands with three m*_rho targets at '
           f'{args.rate:g} Hz for {args.seconds:g} s, small moves (+-{NECK_AMPLITUDE * 1e3:g} mm); '

@@ -91,9 +91,10 @@ MARKERS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
 
 DEFAULT_NODE_NAME = 'tensegrity'
 #: Start-up check for another node of the same name: every this many seconds, this many
-#: times (discovery on loopback takes well under a second).
+#: times (discovery on loopback usually takes under a second, but several seconds on a
+#: loaded machine: a 3 s window missed it there).
 NAME_CHECK_PERIOD_SEC = 0.5
-NAME_CHECKS = 6
+NAME_CHECKS = 60
 #: Rejected input and failures are logged at most once per this many seconds per reason.
 WARN_THROTTLE_SEC = 2.0
 

@@ -54,6 +54,32 @@ def _ros_env():
 
 
 
+
+def _spin_relay(make_node, executor_kind):
+    """Run a relay node until Ctrl-C (the events executor only for --relay-executor events)."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+
+    rclpy.init()
+    node = None
+    try:
+        node = make_node()
+        if executor_kind == 'events':
+            from rclpy.experimental import EventsExecutor
+            executor = EventsExecutor()
+            executor.add_node(node)
+            while rclpy.ok():
+                executor.spin_once(timeout_sec=0.1)
+        else:
+            rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
 def _stop(procs):
     """Ctrl-C every process still running, then wait for it (killed after 10 s)."""
     for p in procs:
@@ -85,9 +111,7 @@ def _qos():
 
 def run_relay(executor_kind='single'):
     """The bare relay: Float64 in, JointState out, nothing else (``rclpy.spin``)."""
-    import rclpy
     from geometry_msgs.msg import Vector3
-    from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
@@ -110,25 +134,7 @@ def run_relay(executor_kind='single'):
             out.header.stamp = self.get_clock().now().to_msg()
             self.pub.publish(out)
 
-    rclpy.init()
-    node = None
-    try:
-        node = Relay()
-        if executor_kind == 'events':       # for comparison only (--relay-executor events)
-            from rclpy.experimental import EventsExecutor
-            executor = EventsExecutor()
-            executor.add_node(node)
-            while rclpy.ok():
-                executor.spin_once(timeout_sec=0.1)
-        else:
-            rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return _spin_relay(Relay, executor_kind)
 
 
 class Driver:
@@ -482,8 +488,6 @@ NECK_PERIOD = 1000                     # commands per sine period
 
 def run_neck_relay():
     """The bare relay for the neck: joint_commands in, joint_states (nine joints) out."""
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
     from sensor_msgs.msg import JointState
 
@@ -503,18 +507,7 @@ def run_neck_relay():
             out.header.stamp = self.get_clock().now().to_msg()
             self.pub.publish(out)
 
-    rclpy.init()
-    node = None
-    try:
-        node = NeckRelay()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return _spin_relay(NeckRelay, 'single')
 
 
 class NeckDriver(Driver):

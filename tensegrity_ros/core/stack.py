@@ -160,7 +160,6 @@ class _Topology:
         self.n_springs = len(springs)
         self.mobility = rods[_FIXED:].T @ rods[_FIXED:]   # moving nodes shared by two rods
         self.identity = np.eye(self.n_rods)
-        self.no_multipliers = np.zeros(0)
         # K = E^T diag(w) E as one product: (w @ element_outer).reshape(2N, 2N)
         self.element_outer = np.einsum('er,eq->erq', self.element_rods,
                                        self.element_rods).reshape(len(ends), -1)
@@ -307,8 +306,8 @@ class _Point:
     base ``moment`` = conj(rod) force (imaginary part: dL/dphi; real part: the
     Hessian's diagonal term).  What only some callers need is made on first use."""
 
-    __slots__ = ('key', 'values', 'mu', 'rods', 'diff', 'force', 'moment', 'weights',
-                 '_squares', '_hessian', '_jc', '_gram', 'rates')
+    __slots__ = ('key', 'values', 'rods', 'diff', 'force', 'moment', 'weights', '_multipliers',
+                 '_f_ref', '_squares', '_hessian', '_jc', '_gram', 'rates')
 
     def __init__(self, path, y, key, values):
         top = path.topology
@@ -318,13 +317,10 @@ class _Point:
         diff = self.diff = top.element_rods_c @ rods
         diff += values.shift
         weights = self.weights = values.weights
+        multipliers = self._multipliers = y[n:]
+        self._f_ref = path.f_ref
         if top.n_chords:
-            multipliers = y[n:]
-            self.mu = multipliers * path.f_ref
-            weights = self.weights = weights.copy()
-            weights[top.n_springs:] = multipliers * path.f_ref_per_l_ref
-        else:
-            self.mu = top.no_multipliers
+            weights = self.weights = np.concatenate((values.k, multipliers * path.f_ref_per_l_ref))
         force = self.force = top.element_rods_tc @ (weights * diff)
         force -= values.rod_loads
         self.moment = rods.conj() * force
@@ -333,6 +329,11 @@ class _Point:
     def gradient(self):
         """dL/dphi (2N,): the torque of the generalized force about every rod's base."""
         return self.moment.imag
+
+    @property
+    def mu(self):
+        """The chord multipliers (N - 1,), N: the chords' compression forces."""
+        return self._multipliers * self._f_ref
 
     @property
     def squares(self):
@@ -409,7 +410,10 @@ class StackPath:
         self.inv_l_ref = 1.0 / self.l_ref
         self.chord_rods_scaled = top.chord_rods * -self.inv_l_ref
         self._zero_values = zero
-        self._rate_values = _Values.difference(top, one, zero)
+        rate = self._rate_values = _Values.difference(top, one, zero)
+        # which parameter groups move along the path (a still group adds nothing to d/ds)
+        self._moving = {'rod': rate.rod.any(), 'k': rate.k.any(),
+                        'rod_loads': rate.rod_loads.any()}
         self._values = {0.0: zero, 1.0: one}
         self._point = None
 
@@ -496,6 +500,9 @@ class StackPath:
         vectors)/ds, d(element differences)/ds, Re(conj(diff) d diff/ds))."""
         if p.rates is None:
             rate = self._rate_values
+            if not self._moving['rod']:             # rigid rods: only the base moves
+                p.rates = None, None, rate.shift, p.diff.real * rate.shift
+                return p.rates
             ratio = rate.rod / p.values.rod
             d_rods = p.rods * ratio
             d_diff = self.topology.element_rods_c @ d_rods
@@ -510,12 +517,20 @@ class StackPath:
     def residual_s_at(self, p):
         top, rate = self.topology, self._rate_values
         ratio, _, d_diff, cross = self._rates(p)
-        d_force = top.element_rods_tc @ (rate.weights * p.diff + p.weights * d_diff)
-        d_force -= rate.rod_loads
+        moving = self._moving
+        d_weighted = p.weights * d_diff
+        if moving['k']:
+            d_weighted = d_weighted + rate.weights * p.diff      # (complex where rods are still)
+        d_force = top.element_rods_tc @ d_weighted
+        if moving['rod_loads']:
+            d_force -= rate.rod_loads
         out = np.empty(self.size)
         n, ns = top.n_rods, top.n_springs
         # d Im(conj(v) f) with dv = ratio v: Im(conj(v) df) + ratio Im(conj(v) f)
-        out[:n] = ((p.rods.conj() * d_force).imag + ratio * p.moment.imag) * self.inv_l_ref
+        d_gradient = (p.rods.conj() * d_force).imag
+        if ratio is not None:
+            d_gradient += ratio * p.moment.imag
+        out[:n] = d_gradient * self.inv_l_ref
         out[n:] = (cross[ns:] - p.values.chord * rate.chord) * self.inv_l_ref
         return out
 
@@ -542,9 +557,15 @@ class StackPath:
     def energy_s_at(self, p):
         v, rate, ns = p.values, self._rate_values, self.topology.n_springs
         _, d_rods, _, cross = self._rates(p)
-        springs = 0.5 * float(rate.k @ p.squares[:ns]) + float(p.weights @ cross)
-        work = ((np.vdot(rate.rod_loads, p.rods) + np.vdot(v.rod_loads, d_rods)).real
-                + rate.base_load * v.rho0 + v.base_load * rate.rho0)
+        moving = self._moving
+        springs = float(p.weights @ cross)
+        if moving['k']:
+            springs += 0.5 * float(rate.k @ p.squares[:ns])
+        work = rate.base_load * v.rho0 + v.base_load * rate.rho0
+        if moving['rod_loads']:
+            work += np.vdot(rate.rod_loads, p.rods).real
+        if d_rods is not None:
+            work += np.vdot(v.rod_loads, d_rods).real
         if not self.topology.n_chords:
             return springs - work
         return springs - work - float(p.mu @ (v.chord * rate.chord)) / self.l_ref

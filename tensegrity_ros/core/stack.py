@@ -412,8 +412,8 @@ class StackPath:
         self._zero_values = zero
         rate = self._rate_values = _Values.difference(top, one, zero)
         # which parameter groups move along the path (a still group adds nothing to d/ds)
-        self._moving = {'rod': rate.rod.any(), 'k': rate.k.any(),
-                        'rod_loads': rate.rod_loads.any()}
+        changes, layout = rate.data.tolist(), top.value_layout     # (Python: a few floats)
+        self._moving = {name: any(changes[layout[name]]) for name in ('rod', 'k', 'rod_loads')}
         self._values = {0.0: zero, 1.0: one}
         self._point = None
 

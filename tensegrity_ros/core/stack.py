@@ -49,6 +49,7 @@ _FIXED = 2          # A1(0) and A2(0) are the first two entries of the node tabl
 _DAMPING = 1e-3
 _DAMPING_ONSET = 1e-2
 _FRAME_SIGNS, _ANGLE_SIGNS = np.array([1.0, -1.0]), np.array([-1.0, 1.0])  # StackPath.angles_at
+_BASE_AXIS = np.ones(1, dtype=complex)      # module 0's x axis A1(0) -> A2(0), as a chord
 
 
 def _solve_guarded(matrix, rhs):
@@ -663,7 +664,7 @@ class StackPath:
     def angles_at(self, p):
         # module x axes A1 -> A2 (unnormalised: angles are blind to positive scale);
         # t1 = arg(v1 conj(x)) = -arg(conj(v1) x), t2 = arg(-x conj(v2))
-        frame = np.concatenate([[1.0], p.chords(self)])
+        frame = np.concatenate((_BASE_AXIS, p.chords(self)))
         local = p.rods.reshape(self.n, 2).conj() * (frame[:, None] * _FRAME_SIGNS)
         return np.angle(local) * _ANGLE_SIGNS
 

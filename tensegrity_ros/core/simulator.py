@@ -391,9 +391,11 @@ class Simulator:
         return None
 
     def _jump_ahead(self, index, rho, cause):
-        """A :class:`JumpAhead` if ``rho`` lies beyond a fold or branch point of the live
-        branch's operation range (one module only: the exact range; none while a path
-        is pending: the live branch is not where the command starts)."""
+        """A :class:`JumpAhead` if ``rho`` lies beyond an end of the live branch's
+        operation range where the tracker jumps (a fold, or a branch point where the
+        branch buckles: see :meth:`.OperationRange.jumps_at`).  One module only (the
+        exact range); none while a path is pending (the live branch is not where the
+        command starts)."""
         if self.pending:
             return None
         found = self._mechanism.operation_range(self.modules, self.state)
@@ -401,7 +403,7 @@ class Simulator:
             return None
         end = found.lower if rho < found.lower.rho else (
             found.upper if rho > found.upper.rho else None)
-        if end is None or end.kind == 'limit':
+        if end is None or not found.jumps_at(end):
             return None
         return JumpAhead(module=index, rho=rho, end=end, cause=cause)
 

@@ -427,7 +427,7 @@ class TensegrityNode(Node):
                 moving = [k for k in keys if params.kind_of(k) in (params.PHYSICAL,
                                                                     params.FORCE)]
                 if moving:
-                    changes[i] = params.design_changes(get, self._sim.modules[i], moving)
+                    changes[i] = params.design_changes(get, self._sim.goal(i), moving)
                     changed_names += [f'{m}.{k}' for k in moving]
             if changes:
                 cause = 'parameter ' + ', '.join(sorted(changed_names))

@@ -22,7 +22,6 @@ machine are noisy: compare the ratio, not the absolute figures.
 """
 import argparse
 import inspect
-import math
 import time
 
 import numpy as np

@@ -105,8 +105,6 @@ def test_cancel_unwinds_a_paused_job():
     assert not job.run(clock() + 3) and not job.run(clock() + 3)
     job.cancel()
     assert job.done and record == ['unwound', 'unwound']     # the inline try and the worker
-    assert not any(t.name == 'bounded-work' and t.is_alive() for t in threading.enumerate()
-                   if t is job._thread)
 
 
 # -- the simulator ---------------------------------------------------------------------
@@ -205,3 +203,27 @@ def test_reset_abandons_a_pending_path():
     assert sim.reset([fig8a(0.6)], [[-1.0, -1.0]]).accepted
     assert not sim.pending and sim.modules == (fig8a(0.6),) and sim.jumps_total == 0
     assert not sim.advance(0).events and sim.modules == (fig8a(0.6),)
+
+
+def test_a_speed_limited_actuator_waits_while_a_path_is_pending():
+    """No motion accrues while the mechanism has not followed (the published actuator
+    length never steps by more than its rate allows), then it moves on at its rate."""
+    tick = 10_000_000                                           # ns
+    sim = Simulator([fig8a()], [[-1.0, -1.0]], [ModuleLimits(0.05, 1.95, max_rho_rate=0.1)],
+                    time_budget=3, clock=CountingClock(), work_limit=None)
+    sim.set_parameters({0: {'ka': 400.0}}, 0, 'stiffer a spring')
+    sim.command_rho(0, 0.6, 0)
+    assert sim.pending and sim.target(0) == 0.6
+    now, rhos = 0, [0.5]
+    while sim.modules[0].ka != 400.0:                  # the stiffening path is pending
+        now += tick
+        sim.advance(now)
+        rhos.append(sim.goal(0).rho)
+    assert rhos[:4] == [0.5] * 4                        # the actuator waited meanwhile
+    for _ in range(5):
+        now += tick
+        sim.advance(now)
+        rhos.append(sim.goal(0).rho)
+    steps = np.diff(rhos)
+    assert np.all(steps >= 0.0) and np.all(steps <= 0.1 * tick * 1e-9 + 1e-12)
+    assert rhos[-1] > 0.5 and sim.target(0) == 0.6

@@ -14,8 +14,9 @@ the tracker's next check point, see :mod:`.bounded_work`).  A path that needs lo
 on in the following calls (:meth:`Simulator.advance`, or any command) exactly as an
 unbounded run would: the first call that defers it reports a
 :class:`~tensegrity_ros.core.events.Deferred`, the state stays the last verified one
-until the path ends, and commands sent meanwhile are merged into one path that starts
-where it ends (the latest value of every parameter wins).  A path that has worked
+until the path ends, commands sent meanwhile are merged into one path that starts
+where it ends (the latest value of every parameter wins), and speed-limited actuators
+wait for the mechanism (they move on at their rate once it has followed).  A path that has worked
 ``work_limit`` seconds in all is given up (a tracking failure, state kept).
 
 One module and a neck share every line here: the solver behind (:mod:`.mechanisms`)
@@ -421,9 +422,14 @@ class Simulator:
         return advanced
 
     def _advance_module(self, index, now_ns):
-        """Move one actuator toward its target by max_rho_rate * elapsed time."""
+        """Move one actuator toward its target by max_rho_rate * elapsed time.  While a
+        path is pending the actuator waits for the mechanism (no motion accrues, so the
+        published actuator lengths keep to the speed limit: no catch-up step later)."""
         slot = self._slots[index]
         if slot.target is None:
+            return Outcome()
+        if self.pending:
+            slot.stamp_ns = max(slot.stamp_ns, now_ns)
             return Outcome()
         dt = max(0, now_ns - slot.stamp_ns) * 1e-9
         rate, rho, target = slot.limits.max_rho_rate, self.goal(index).rho, slot.target

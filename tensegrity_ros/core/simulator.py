@@ -350,12 +350,16 @@ class Simulator:
         return advanced
 
     def advance(self, now_ns):
-        """Go on with a pending path, and move every speed-limited actuator toward its
-        target, up to time ``now_ns``."""
+        """Go on with a pending path (speed-limited actuators wait for it, this call
+        included), else move every speed-limited actuator toward its target, up to time
+        ``now_ns``."""
         self._start_call()
-        return ev.combined([self._continue()] + [
-            self._advance_module(i, now_ns)
-            for i, slot in enumerate(self._slots) if slot.target is not None])
+        if self.pending:
+            for slot in self._slots:
+                slot.stamp_ns = max(slot.stamp_ns, now_ns)
+            return self._continue()
+        return ev.combined([self._advance_module(i, now_ns)
+                            for i, slot in enumerate(self._slots) if slot.target is not None])
 
     def reset(self, modules, initial_theta):
         """Start over: settle ``modules`` from ``initial_theta`` (one [t1, t2] per module;

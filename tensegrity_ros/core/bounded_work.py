@@ -18,6 +18,7 @@ and the check points lie deep in solver loops, hence the thread.
 """
 from __future__ import annotations
 
+import math
 import threading
 
 _local = threading.local()
@@ -91,7 +92,7 @@ class Job:
     def _run_inline(self):
         """The first attempt, on the caller's thread; False if it ran out of time."""
         previous = getattr(_local, 'hook', None)
-        _local.hook = self._inline_check
+        _local.hook = self._inline_check if self._deadline != math.inf else None
         try:
             self._result = self._work()
         except OutOfTime:

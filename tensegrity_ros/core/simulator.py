@@ -112,17 +112,20 @@ class _Module:
         self.tracking = 'ok'
 
 
-@dataclass(frozen=True)
 class _Path:
-    """A straight path to the modules ``end``, caused by ``cause`` of module ``trigger``."""
+    """A straight path to the modules ``end``, caused by ``cause`` of module ``trigger``
+    (a plain class: one is made per command, on the small-step hot path)."""
 
-    end: tuple
-    cause: str
-    trigger: int
+    __slots__ = ('end', 'cause', 'trigger')
+
+    def __init__(self, end, cause, trigger):
+        self.end, self.cause, self.trigger = end, cause, trigger
 
 
 class _Motion:
     """A path being tracked in slices: its :class:`~.bounded_work.Job` and the work done."""
+
+    __slots__ = ('path', 'job', 'worked', 'deferred')
 
     def __init__(self, path, job):
         self.path, self.job = path, job
@@ -494,12 +497,11 @@ class Simulator:
         """Resume ``motion`` until the deadline: its outcome once it ends (or is given up
         or first deferred: a Deferred), else None."""
         began = self._clock()
-        done = motion.job.run(self._deadline)
-        motion.worked += self._clock() - began
-        path = motion.path
-        if done:
+        if motion.job.run(self._deadline):
             self._motion = None
             return self._finish(motion)
+        motion.worked += self._clock() - began
+        path = motion.path
         if self.work_limit is not None and motion.worked > self.work_limit:
             motion.job.cancel()
             self._motion = None

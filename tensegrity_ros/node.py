@@ -586,10 +586,15 @@ class TensegrityNode(Node):
                 self.get_logger().error(response.message)
                 return response
             self._last_stable = None            # republish stable too
-            self._publish_everything()
+            self._report(outcome)
             response.success = True
-            response.message = 'reset to the initial state; ' + '; '.join(
-                self._describe_module(i) for i in range(len(self._names)))
+            if self._sim.pending:               # a long settle: it ends on later ticks
+                response.message = ('reset under way: settling takes more than one tick; '
+                                    'the state is published when it is reached')
+            else:
+                self._publish_everything()
+                response.message = 'reset to the initial state; ' + '; '.join(
+                    self._describe_module(i) for i in range(len(self._names)))
             self.get_logger().info(response.message)
         except Exception as exc:
             self._count_exception('reset', exc)

@@ -200,7 +200,8 @@ def test_reset_abandons_a_pending_path():
     sim = one_module(time_budget=3, clock=CountingClock(), work_limit=None)
     sim.command_rho(0, 0.1, 0)
     assert sim.pending
-    assert sim.reset([fig8a(0.6)], [[-1.0, -1.0]]).accepted
+    outcomes = drive(sim, lambda s: s.reset([fig8a(0.6)], [[-1.0, -1.0]]))   # settles in slices
+    assert outcomes[0].accepted and not events(outcomes, TrackingFailure)
     assert not sim.pending and sim.modules == (fig8a(0.6),) and sim.jumps_total == 0
     assert not sim.advance(0).events and sim.modules == (fig8a(0.6),)
 
@@ -227,3 +228,43 @@ def test_a_speed_limited_actuator_waits_while_a_path_is_pending():
     steps = np.diff(rhos)
     assert np.all(steps >= 0.0) and np.all(steps <= 0.1 * tick * 1e-9 + 1e-12)
     assert rhos[-1] > 0.5 and sim.target(0) == 0.6
+
+
+def loaded_neck():
+    return [ModuleParams.paper(0.75)] * 2 + [ModuleParams.paper(0.75, F3=-1.0, F4=-1.0)]
+
+
+def test_a_long_reset_spans_calls_keeping_the_old_state_meanwhile():
+    reference = paper_neck(time_budget=None)
+    assert reference.reset(loaded_neck(), None).accepted
+    sim = paper_neck(time_budget=3, clock=CountingClock(), work_limit=None)
+    old_state, old_modules = sim.state, sim.modules
+    first = sim.reset(loaded_neck(), None)
+    assert first.accepted and sim.pending and first.of_type(Deferred)
+    assert sim.state is old_state and sim.modules == old_modules
+    assert sim.goal(2) == loaded_neck()[2]
+    outcomes = drive(sim, lambda s: s.advance(0))
+    assert not events(outcomes, TrackingFailure) and sim.modules == tuple(loaded_neck())
+    np.testing.assert_array_equal(sim.state.theta, reference.state.theta)
+
+
+def test_a_deferred_reset_that_finds_no_minimum_is_a_failure_keeping_the_state(monkeypatch):
+    import tensegrity_ros.core.mechanisms as mechanisms
+    from tensegrity_ros.core import TrackingError
+
+    def slow_failure(modules, thetas):
+        counted(50)()
+        raise TrackingError('injected')
+
+    sim = one_module(time_budget=3, clock=CountingClock(), work_limit=None)
+    old_state = sim.state
+    monkeypatch.setattr(mechanisms.OneModule, 'settle', lambda self, m, t: slow_failure(m, t))
+    assert sim.reset([fig8a(0.6)], [[-1.0, -1.0]]).accepted and sim.pending
+    outcomes = drive(sim, lambda s: s.advance(0))
+    [failure] = events(outcomes, TrackingFailure)
+    assert 'reset: no stable equilibrium from initial_theta: injected' in failure.text
+    assert sim.state is old_state and sim.modules == (fig8a(),)
+    # refused at once when the settle fails within the call's budget, as before
+    sim.time_budget = None
+    refused = sim.reset([fig8a(0.6)], [[-1.0, -1.0]])
+    assert refused.status == 'refused' and 'injected' in refused.message

@@ -650,7 +650,9 @@ class _Tracker:
             budget[0] -= 1
             if budget[0] < 0 or (budget[0] % 64 == 0 and self.out_of_time()):
                 raise _FlowBudgetExceeded
-            return problem.descent(v, s)
+            if budget[0] % 8 == 0:
+                checkpoint()        # inside a solver step too (a neck's takes ~30 evaluations);
+            return problem.descent(v, s)    # scipy >= 1.17's LSODA is re-entrant
 
         for _ in range(4):
             try:

@@ -50,8 +50,9 @@ SOLVER_ERRORS = (TrackingError, ValueError, ArithmeticError, np.linalg.LinAlgErr
 #: calls): well under the 100 ms a node's executor may stall on one input.
 DEFAULT_TIME_BUDGET = 0.05
 #: Seconds of tracking one path may use in all before it is given up (a guard: the
-#: hardest in-range paths measured need ~1 s; see benchmarks/bench_worst_case.py).
-DEFAULT_WORK_LIMIT = 20.0
+#: hardest in-range paths measured need ~1 s alone, ~7 s on a loaded machine; see
+#: benchmarks/bench_worst_case.py).
+DEFAULT_WORK_LIMIT = 60.0
 #: Forces per loaded node: which ModuleParams fields a force at A3 / A4 sets.
 FORCE_FIELDS = {'a3': ('f3x', 'f3y'), 'a4': ('f4x', 'f4y')}
 
@@ -125,10 +126,10 @@ class _Path:
 class _Motion:
     """A path being tracked in slices: its :class:`~.bounded_work.Job` and the work done."""
 
-    __slots__ = ('path', 'job', 'worked', 'deferred')
+    __slots__ = ('path', 'job', 'finish', 'worked', 'deferred')
 
-    def __init__(self, path, job):
-        self.path, self.job = path, job
+    def __init__(self, path, job, finish):
+        self.path, self.job, self.finish = path, job, finish   # finish(motion) -> Outcome
         self.worked = 0.0           # seconds of tracking so far
         self.deferred = False       # a Deferred was reported
 
@@ -170,7 +171,9 @@ class Simulator:
         self._deadline = math.inf       # of the running call
         self._motion = None             # the path being tracked (a _Motion), or None
         self._queued = None             # the _Path to track after it, or None
+        self.time_budget = None         # the start is settled in one call, however long
         started = self.reset(modules, initial_theta)
+        self.time_budget = time_budget
         if not started.accepted:
             raise ValueError(started.message)
 
@@ -367,24 +370,39 @@ class Simulator:
     def reset(self, modules, initial_theta):
         """Start over: settle ``modules`` from ``initial_theta`` (one [t1, t2] per module;
         None: the default start, see :func:`.start_state.start_state`); motion, jumps and
-        tracking status are cleared.  Refused (state unchanged) if no
-        stable equilibrium is reached."""
+        tracking status are cleared.  Refused (state unchanged) if no stable equilibrium
+        is reached.  A settle that needs more than the call's time budget (a loaded neck
+        can take seconds) goes on in the following calls like a path (a Deferred; the old
+        state until it ends); a settle that then fails is a TrackingFailure of the reset."""
         modules = tuple(modules)
         if len(modules) != len(self._slots):
             raise ValueError(f'{len(modules)} modules given, the simulator has '
                              f'{len(self._slots)}')
-        try:
-            state = start_state(modules, initial_theta)
-        except SOLVER_ERRORS as exc:
-            return ev.refused(ev.PARAMETER_VALUE,
-                              f'no stable equilibrium from initial_theta: {exc}')
         if self._motion is not None:
             self._motion.job.cancel()
         self._motion = self._queued = None
-        self._set_state(modules, state)
+        for slot in self._slots:
+            slot.target = None
+        self._start_call()
+        self._motion = _Motion(_Path(modules, 'reset', 0), Job(
+            functools.partial(start_state, modules, initial_theta), self._clock),
+            self._finish_reset)
+        return self._work_on(self._motion)
+
+    def _finish_reset(self, motion):
+        """Apply a finished settle: the new start state, or a refusal (a failure if the
+        reset was deferred: its call has long returned)."""
+        try:
+            state = motion.job.result()
+        except SOLVER_ERRORS as exc:
+            text = f'no stable equilibrium from initial_theta: {exc}'
+            if motion.deferred:
+                return self._failed(0, f'reset: {text}')
+            return ev.refused(ev.PARAMETER_VALUE, text)
+        self._set_state(motion.path.end, state)
         self.jumps_total = 0
         for slot in self._slots:
-            slot.target, slot.last_jump, slot.tracking = None, None, 'ok'
+            slot.last_jump, slot.tracking = None, 'ok'
         return Outcome()
 
     # -- inside ---------------------------------------------------------------------------
@@ -486,7 +504,8 @@ class Simulator:
                 if path.end == self.modules:
                     continue
                 self._motion = _Motion(path, Job(functools.partial(
-                    self._mechanism.track, self.modules, path.end, self.state), self._clock))
+                    self._mechanism.track, self.modules, path.end, self.state), self._clock),
+                    self._finish)
             outcome = self._work_on(self._motion)
             if outcome is None:
                 break
@@ -499,7 +518,7 @@ class Simulator:
         began = self._clock()
         if motion.job.run(self._deadline):
             self._motion = None
-            return self._finish(motion)
+            return motion.finish(motion)
         motion.worked += self._clock() - began
         path = motion.path
         if self.work_limit is not None and motion.worked > self.work_limit:

@@ -3,8 +3,8 @@
 Every case builds a :class:`~tensegrity_ros.core.simulator.Simulator` (not timed) and
 sends one or a few hard commands: rho jumps across folds and branch points, forces at
 the largest supported load (load/(k L) = 1e4), head-load ramps on necks of 3 and 10
-paper modules (one with m0 ka = 100.0000001, which buckles near-continuously), and
-parameter changes next to the branch point C1.  Each command is followed by
+paper modules (one with m0 ka = 100.0000001, which buckles near-continuously),
+parameter changes next to the branch point C1, and resets of loaded necks (a settle).  Each command is followed by
 ``advance`` calls (10 ms of simulated time apart) while motion is pending, as the
 node's timer would make them.  Every call is timed; the table shows per case the
 worst single call and the sum, for
@@ -72,6 +72,13 @@ def head_load(n, total):
     return params(n - 1, f3y=0.5 * total, f4y=0.5 * total)
 
 
+def reset_with_head_load(n, total):
+    """Start over with half of ``total`` (N) at each node of the top chord (a settle)."""
+    modules = [ModuleParams.paper(0.75) for _ in range(n - 1)]
+    modules.append(ModuleParams.paper(0.75, F3=0.5 * total, F4=0.5 * total))
+    return lambda sim, now: sim.reset(modules, None)
+
+
 WIDE = [ModuleLimits(rho_min=0.01, rho_max=3.0)]
 
 #: name -> (modules, initial theta or None, limits per module or None, commands)
@@ -104,6 +111,10 @@ CASES = {
         (*neck(3), None, [rho_to(0, 0.2), rho_to(0, 1.5)]),
     'N3 joint_commands all 0.75 -> 1.2 -> 0.4':
         (*neck(3), None, [rhos_to({0: 1.2, 1: 1.2, 2: 1.2}), rhos_to({0: 0.4, 1: 0.4, 2: 0.4})]),
+    'N3 reset with a head load of -40 N':
+        (*neck(3), None, [reset_with_head_load(3, -40.0)]),
+    'N10 reset with a head load of -40 N':
+        (*neck(10), None, [reset_with_head_load(10, -40.0)]),
     'N10 head load 0 -> -40 N':
         (*neck(10), None, [head_load(10, -40.0)]),
     'N10 m9/force_a3 (0, -max load)':

@@ -10,14 +10,14 @@ the jumps, tracking failures and early warnings on the way.  Bad input a user co
 never raises; only programming errors (a wrong module index, a wrong type) do.
 
 Bounded work: a call works at most ``time_budget`` seconds on tracking (then returns at
-the tracker's next check point, see :mod:`.bounded_work`).  A path that needs longer goes
-on in the following calls (:meth:`Simulator.advance`, or any command) exactly as an
-unbounded run would: the first call that defers it reports a
+the tracker's next check point, see :mod:`.bounded_work`).  A path that needs longer
+(a reset's settle too) goes on in the following calls (:meth:`Simulator.advance`, or
+any command) exactly as an unbounded run would: the first call that defers it reports a
 :class:`~tensegrity_ros.core.events.Deferred`, the state stays the last verified one
 until the path ends, commands sent meanwhile are merged into one path that starts
 where it ends (the latest value of every parameter wins), and speed-limited actuators
-wait for the mechanism (they move on at their rate once it has followed).  A path that has worked
-``work_limit`` seconds in all is given up (a tracking failure, state kept).
+wait for the mechanism (they move on at their rate once it has followed).  A path that
+has worked ``work_limit`` seconds in all is given up (a tracking failure, state kept).
 
 One module and a neck share every line here: the solver behind (:mod:`.mechanisms`)
 is the exact one-module tracker for N = 1 and the coupled stack tracker otherwise.

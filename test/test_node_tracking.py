@@ -3,6 +3,7 @@ import pytest
 from geometry_msgs.msg import Vector3
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
 
 from tensegrity_ros.core import ModuleParams, settle, track_module
 from test_node import fig8a_overrides, harness, ros, values  # noqa: F401  (fixtures)
@@ -73,3 +74,17 @@ def test_parameters_beyond_the_range_are_refused_and_read_back_live(harness, par
     result = h.node.set_parameters([param])[0]
     assert not result.successful and 'supported range' in result.reason
     assert h.node.get_parameter(param.name).value == before
+
+
+def test_a_reset_that_needs_several_ticks_answers_at_once_and_settles_on_the_ticks(harness):
+    h = harness(fig8a_overrides()).ready()
+    assert h.command_rho(0.3)[0] == 0.3
+    h.node.simulator.time_budget = 0.0
+    h.spin_until(h.reset_client.service_is_ready, what='reset service')
+    response = h.call(h.reset_client.call_async(Trigger.Request()), 'reset')
+    assert response.success and 'reset under way' in response.message
+    h.spin_until(lambda: not h.node.simulator.pending, what='the settle on the ticks')
+    h.wait_status(lambda v: float(v['rho']) == 0.5)
+    start = settle(ModuleParams.paper(0.5, F3=5.0, F4=5.0), [-1.0, -1.0])
+    assert h.node.module_state()[1].theta1 == start.theta1
+    assert h.node.counters['commands_deferred'] == 1 and h.stable[-1].data is True

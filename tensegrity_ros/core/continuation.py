@@ -650,9 +650,9 @@ class _Tracker:
             budget[0] -= 1
             if budget[0] < 0 or (budget[0] % 64 == 0 and self.out_of_time()):
                 raise _FlowBudgetExceeded
-            if budget[0] % 8 == 0:
-                checkpoint()        # inside a solver step too (a neck's takes ~30 evaluations);
-            return problem.descent(v, s)    # scipy >= 1.17's LSODA is re-entrant
+            if budget[0] % 8 == 0:  # inside a solver step too: a neck's takes ~30
+                checkpoint()        # evaluations (scipy >= 1.17's LSODA is re-entrant)
+            return problem.descent(v, s)
 
         for _ in range(4):
             try:
@@ -677,7 +677,7 @@ class _Tracker:
         with np.errstate(all='ignore'):
             solver = LSODA(velocity, 0.0, y, 1e7 / self.scale, rtol=1e-7, atol=1e-10)
             while solver.status == 'running':
-                checkpoint()            # between solver steps, never inside one
+                checkpoint()            # between solver steps (and inside: velocity)
                 solver.step()
                 if _inf_norm(velocity(solver.t, solver.y)) <= tol:
                     return solver.y

@@ -54,7 +54,7 @@ from tensegrity_ros.joint_state_names import exact_names
 from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.params_file import ConfigError, check_parameter_file
 from tensegrity_ros.core.command_coalescing import LatestCommands, force_key, target_key
-from tensegrity_ros.core.events import Jump, JumpAhead, TrackingFailure
+from tensegrity_ros.core.events import Deferred, Jump, JumpAhead, TrackingFailure
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.simulator import Simulator
 from tensegrity_ros.core.stack import Stack
@@ -140,7 +140,7 @@ class TensegrityNode(Node):
         self._counters = {f'rejected_{r}': 0 for r in REJECT_REASONS}
         self._counters.update(commands_processed=0, commands_coalesced=0,
                               callback_exceptions=0, jump_warnings=0,
-                              tracking_failures=0, jumps_total=0)
+                              tracking_failures=0, jumps_total=0, commands_deferred=0)
         self._level_events = set()          # what happened since the last /diagnostics
         self._loggers = {}
         self._last_stable = None
@@ -427,7 +427,7 @@ class TensegrityNode(Node):
                 moving = [k for k in keys if params.kind_of(k) in (params.PHYSICAL,
                                                                     params.FORCE)]
                 if moving:
-                    changes[i] = params.design_changes(get, self._sim.modules[i], moving)
+                    changes[i] = params.design_changes(get, self._sim.goal(i), moving)
                     changed_names += [f'{m}.{k}' for k in moving]
             if changes:
                 cause = 'parameter ' + ', '.join(sorted(changed_names))
@@ -586,10 +586,15 @@ class TensegrityNode(Node):
                 self.get_logger().error(response.message)
                 return response
             self._last_stable = None            # republish stable too
-            self._publish_everything()
+            self._report(outcome)
             response.success = True
-            response.message = 'reset to the initial state; ' + '; '.join(
-                self._describe_module(i) for i in range(len(self._names)))
+            if self._sim.pending:               # a long settle: it ends on later ticks
+                response.message = ('reset under way: settling takes more than one tick; '
+                                    'the state is published when it is reached')
+            else:
+                self._publish_everything()
+                response.message = 'reset to the initial state; ' + '; '.join(
+                    self._describe_module(i) for i in range(len(self._names)))
             self.get_logger().info(response.message)
         except Exception as exc:
             self._count_exception('reset', exc)
@@ -614,6 +619,8 @@ class TensegrityNode(Node):
                 self._report_tracking_failure(event)
             elif isinstance(event, JumpAhead):
                 self._report_jump_ahead(event)
+            elif isinstance(event, Deferred):
+                self._report_deferred(event)
         if jumped:
             self._publish_statuses()
 
@@ -633,6 +640,13 @@ class TensegrityNode(Node):
         self._throttled('tracking').warning(
             f'{self._names[failure.module]}: tracking failed ({failure.text}); holding the '
             f'last verified equilibrium', throttle_duration_sec=WARN_THROTTLE_SEC)
+
+    def _report_deferred(self, deferred):
+        self._counters['commands_deferred'] += 1
+        self._level_events.add('deferred')
+        self._throttled('deferred').warning(
+            f'{self._names[deferred.module]}: {deferred.cause}: {deferred.text}; holding the '
+            f'last verified equilibrium meanwhile', throttle_duration_sec=WARN_THROTTLE_SEC)
 
     def _report_jump_ahead(self, warning):
         self._counters['jump_warnings'] += 1
@@ -724,6 +738,8 @@ class TensegrityNode(Node):
                 parts.append('input rejected')
             if 'tracking' in events:
                 parts.append('tracking failed')
+            if 'deferred' in events:
+                parts.append('a command took more than one tick')
             level, message = conv.WARN, ', '.join(parts) + ' since the last report'
         else:
             level, message = conv.OK, 'ok'

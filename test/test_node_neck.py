@@ -169,6 +169,8 @@ def test_head_load_jump_reported_by_a_lower_module_command(neck):
     # reset returns to rho_initial (with the force parameters now set) and settles upright
     result = h.call(h.reset_client.call_async(Trigger.Request()), 'reset')
     assert result.success
+    # a loaded neck's settle may take more than one call's time budget: it ends on ticks
+    h.spin_until(lambda: not h.node.simulator.pending, what='the reset settled')
     stack, eq = h.node.stack_state()
     assert stack == loaded and eq.stable
     np.testing.assert_allclose(eq.theta, settle_stack(loaded, eq0.theta).theta, atol=1e-12)

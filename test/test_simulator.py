@@ -9,16 +9,19 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import assume, given, settings, strategies as st
 
 import tensegrity_ros.core.mechanisms as mechanisms
-from tensegrity_ros.core import ModuleParams, TrackingError, settle, track_module
-from tensegrity_ros.core.events import Jump, JumpAhead, TrackingFailure
+from tensegrity_ros.core import ModuleParams, TrackingError, equilibria, settle, track_module
+from tensegrity_ros.core.events import Jump, JumpAhead, TrackingFailure, combined
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 
 LOWER = [-1.0, -1.0]                 # fig. 8a: the lower stable branch at rho = 0.5
 S = 1_000_000_000                    # ns per second
+#: These tests are about what a path does, not how its work is split over calls (that
+#: is test_bounded_work.py): one call tracks a whole path however loaded the machine.
+UNBOUNDED = {'time_budget': None}
 
 
 def fig8a(rho=0.5):
@@ -26,7 +29,16 @@ def fig8a(rho=0.5):
 
 
 def fig8a_simulator(**limits):
-    return Simulator([fig8a()], [LOWER], [ModuleLimits(0.05, 1.95, **limits)])
+    return Simulator([fig8a()], [LOWER], [ModuleLimits(0.05, 1.95, **limits)], **UNBOUNDED)
+
+
+def finished(sim, outcome, now_ns=0):
+    """``outcome`` with the events of the calls that finish its path, if it needed more
+    than one call's time budget (``advance`` at the same time: no actuator moves)."""
+    outcomes = [outcome]
+    while sim.pending:
+        outcomes.append(sim.advance(now_ns))
+    return combined(outcomes)
 
 
 def verified_minimum(sim):
@@ -244,7 +256,7 @@ UPRIGHT = [[1.2, 1.2], [1.2, 1.2]]
 
 def neck_simulator(**limits):
     lim = ModuleLimits(0.01, 0.2, **limits)
-    return Simulator(NECK, UPRIGHT, [lim, lim], names=['base', 'top'])
+    return Simulator(NECK, UPRIGHT, [lim, lim], names=['base', 'top'], **UNBOUNDED)
 
 
 def test_a_neck_command_is_the_stack_trackers_path():
@@ -279,7 +291,7 @@ def test_a_neck_jump_is_recorded_in_every_module():
     start = settle_stack(Stack(modules), guess)
     expected = track_stack(Stack(modules), Stack(modules).with_module(1, rho=0.07), start)
     assert [j.kind for j in expected.jumps] == ['branch_point']
-    [jump] = sim.command_rho(1, 0.07, 0).of_type(Jump)
+    [jump] = finished(sim, sim.command_rho(1, 0.07, 0)).of_type(Jump)
     want = expected.jumps[0]
     assert (jump.kind, jump.module, jump.count) == ('branch_point', 1, 1)
     assert jump.modules == want.stack.modules
@@ -337,3 +349,47 @@ def _raises_tracking_error(*args, **kwargs):
 
 def _raises_runtime_error(*args, **kwargs):
     raise RuntimeError('a bug')
+
+
+# ---------------------------------------------------------------------------
+# early warnings only where the tracker jumps (issue 10)
+
+
+def test_no_early_warning_where_a_branch_merges_into_the_flat_state():
+    """Unloaded paper module: the upper branch meets the flat state at rho = L = 1 (a
+    supercritical pitchfork run backwards): the range ends there with a branch point, yet
+    the tracker goes on along the flat state: no warning, no jump."""
+    sim = Simulator([ModuleParams(rho=0.75)], [[0.7, 0.7]], [ModuleLimits(0.0, 3.0)],
+                    **UNBOUNDED)
+    end = sim.status(0).operation_range.upper
+    assert (end.kind, end.rho) == ('branch_point', 1.0)
+    outcome = sim.command_rho(0, 1.3, 0)
+    assert outcome.events == () and sim.modules[0].rho == 1.3
+
+
+def test_the_flat_state_buckling_is_warned_and_jumps():
+    """The other way the flat state loses stability at rho = 1 and buckles: the tracker
+    reports a branch-point jump, so the warning is given."""
+    sim = Simulator([ModuleParams(rho=1.3)], [[0.0, 0.0]], [ModuleLimits(0.0, 3.0)],
+                    **UNBOUNDED)
+    warning, jump = sim.command_rho(0, 0.75, 0).events
+    assert isinstance(warning, JumpAhead) and warning.end.kind == 'branch_point'
+    assert isinstance(jump, Jump) and jump.kind == 'branch_point'
+    assert jump.modules[0].rho == pytest.approx(warning.end.rho, abs=1e-9)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(L2=st.sampled_from([1.0, 1.0, 1.3]), F=st.sampled_from([0.0, 0.0, 5.0, -5.0, 8.0]),
+       rho0=st.floats(0.2, 1.8), rho1=st.floats(0.05, 2.2), branch=st.integers(0, 1))
+def test_an_early_warning_is_given_exactly_where_the_tracker_jumps(L2, F, rho0, rho1, branch):
+    """Symmetric and unloaded modules (pitchforks of every kind, folds): a command is
+    warned about iff the path the tracker follows (``track_module``, not the simulator)
+    jumps."""
+    p = ModuleParams.paper(rho0, L2=L2, F3=F, F4=F)
+    stable = equilibria(p).stable
+    start = stable[min(branch, len(stable) - 1)]
+    assume(start.eigenvalues[0] > 1e-6 * start.eigenvalues[-1])    # not at a critical point
+    sim = Simulator([p], [list(start.theta)], [ModuleLimits(0.0, 4.0)], **UNBOUNDED)
+    track = track_module(p, p.with_(rho=rho1), sim.module(0)[1].theta)
+    warned = sim.command_rho(0, rho1, 0).of_type(JumpAhead)
+    assert bool(warned) == bool(track.jumps), (warned, track.jumps)

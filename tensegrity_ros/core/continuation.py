@@ -32,6 +32,8 @@ from typing import Protocol
 import numpy as np
 from scipy.integrate import LSODA
 
+from .bounded_work import checkpoint
+
 FOLD = 'fold'
 BRANCH_POINT = 'branch_point'
 
@@ -299,6 +301,7 @@ class _Tracker:
         ds, rate = 1.0, None
         while s < s_end:
             self.steps += 1
+            checkpoint()                # a bounded caller may pause here (bounded_work)
             if self.steps > cfg.max_steps:
                 return self.result(y, s, eigenvalues, events, 'failed', 'too many steps')
             if self.out_of_time():
@@ -377,6 +380,7 @@ class _Tracker:
 
     def margin(self, y, s):
         """The test function lambda_min in scale units (its root is the critical point)."""
+        checkpoint()                    # every probe of a localisation
         return self.eigenvalues(y, s)[0] / self.scale
 
     # -- the branch as a curve in (y, s): arclength steps ----------------------
@@ -646,6 +650,8 @@ class _Tracker:
             budget[0] -= 1
             if budget[0] < 0 or (budget[0] % 64 == 0 and self.out_of_time()):
                 raise _FlowBudgetExceeded
+            if budget[0] % 8 == 0:  # inside a solver step too: a neck's takes ~30
+                checkpoint()        # evaluations (scipy >= 1.17's LSODA is re-entrant)
             return problem.descent(v, s)
 
         for _ in range(4):
@@ -671,6 +677,7 @@ class _Tracker:
         with np.errstate(all='ignore'):
             solver = LSODA(velocity, 0.0, y, 1e7 / self.scale, rtol=1e-7, atol=1e-10)
             while solver.status == 'running':
+                checkpoint()            # between solver steps (and inside: velocity)
                 solver.step()
                 if _inf_norm(velocity(solver.t, solver.y)) <= tol:
                     return solver.y

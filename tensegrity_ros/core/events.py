@@ -56,6 +56,17 @@ class TrackingFailure:
 
 
 @dataclass(frozen=True)
+class Deferred:
+    """A path of ``module``'s command ``cause`` needs more than one call's time budget:
+    it goes on in the following calls (``text`` says so); until it ends the state is the
+    last verified one.  Reported once per path."""
+
+    module: int
+    cause: str
+    text: str
+
+
+@dataclass(frozen=True)
 class JumpAhead:
     """Early warning: the target ``rho`` of ``module`` lies beyond the end of the live
     branch's operation range (``end``, a fold or branch point): the mechanism will jump."""

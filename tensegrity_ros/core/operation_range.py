@@ -76,6 +76,20 @@ class OperationRange:
     def __contains__(self, rho):
         return self.lower.rho < rho < self.upper.rho
 
+    def jumps_at(self, end):
+        """Whether the tracker jumps where this branch reaches ``end`` (one of its ends).
+
+        At a fold, always.  At a branch point, only where this branch is the symmetric
+        one losing stability (it buckles); a non-symmetric branch ending where it merges
+        into its symmetric one (a pitchfork run backwards, e.g. the unloaded module at
+        rho = (L1 + L2) / 2) goes on along it, stable, without a jump.  A branch point
+        whose symmetry is not known counts as a jump."""
+        if end.kind == FOLD:
+            return True
+        if end.kind != BRANCH_POINT:
+            return False
+        return end.symmetry is None or _invariant(self.theta, end.symmetry)
+
     def theta_at(self, rho):
         """The branch's equilibrium at ``rho`` inside the range (interpolated, polished)."""
         if not self.lower.rho <= rho <= self.upper.rho:
@@ -86,6 +100,16 @@ class OperationRange:
         P[0] = rho
         t1, t2, ok = _newton_theta(P, *guess)
         return (t1, t2)
+
+
+def _invariant(theta, symmetry, tol=1e-9):
+    """Whether the configuration ``theta`` is mapped onto itself by ``symmetry``."""
+    t1, t2 = (float(v) for v in theta)
+    if symmetry == SWAP:
+        return abs(_wrap_float(t1 - t2)) <= tol
+    if symmetry == SWAP_MIRROR:
+        return abs(_wrap_float(t1 + t2)) <= tol
+    return all(min(abs(_wrap_float(t)), abs(_wrap_float(t - math.pi))) <= tol for t in (t1, t2))
 
 
 def _newton_theta(P, t1, t2, max_iter=12):

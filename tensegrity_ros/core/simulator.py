@@ -9,20 +9,33 @@ the state is the last verified one) or ``refused`` (bad input, nothing changed),
 the jumps, tracking failures and early warnings on the way.  Bad input a user could send
 never raises; only programming errors (a wrong module index, a wrong type) do.
 
+Bounded work: a call works at most ``time_budget`` seconds on tracking (then returns at
+the tracker's next check point, see :mod:`.bounded_work`).  A path that needs longer
+(a reset's settle too) goes on in the following calls (:meth:`Simulator.advance`, or
+any command) exactly as an unbounded run would: the first call that defers it reports a
+:class:`~tensegrity_ros.core.events.Deferred`, the state stays the last verified one
+until the path ends, commands sent meanwhile are merged into one path that starts
+where it ends (the latest value of every parameter wins), and speed-limited actuators
+wait for the mechanism (they move on at their rate once it has followed).  A path that
+has worked ``work_limit`` seconds in all is given up (a tracking failure, state kept).
+
 One module and a neck share every line here: the solver behind (:mod:`.mechanisms`)
 is the exact one-module tracker for N = 1 and the coupled stack tracker otherwise.
 Times are integer nanoseconds (as ROS clocks give them), so elapsed times are exact.
 """
 from __future__ import annotations
 
+import functools
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import events as ev
+from .bounded_work import Job
 from .continuation import TrackingError
-from .events import JumpAhead, Outcome, TrackingFailure
+from .events import Deferred, JumpAhead, Outcome, TrackingFailure
 from .mechanisms import make_jump, mechanism_for
 from .module import InvalidParameterError, ModuleParams
 from .supported_range import check_supported
@@ -33,6 +46,13 @@ from .tracking import ModuleJump
 DEFINITENESS_TOL = 1e-9
 #: What a failing solver may raise on a bad path (anything else is a bug and propagates).
 SOLVER_ERRORS = (TrackingError, ValueError, ArithmeticError, np.linalg.LinAlgError)
+#: Seconds one call may spend tracking before it returns (the rest goes on in later
+#: calls): well under the 100 ms a node's executor may stall on one input.
+DEFAULT_TIME_BUDGET = 0.05
+#: Seconds of tracking one path may use in all before it is given up (a guard: the
+#: hardest in-range paths measured need ~1 s alone, ~7 s on a loaded machine; see
+#: benchmarks/bench_worst_case.py).
+DEFAULT_WORK_LIMIT = 60.0
 #: Forces per loaded node: which ModuleParams fields a force at A3 / A4 sets.
 FORCE_FIELDS = {'a3': ('f3x', 'f3y'), 'a4': ('f4x', 'f4y')}
 
@@ -93,15 +113,41 @@ class _Module:
         self.tracking = 'ok'
 
 
+class _Path:
+    """A straight path to the modules ``end``, caused by ``cause`` of module ``trigger``
+    (a plain class: one is made per command, on the small-step hot path)."""
+
+    __slots__ = ('end', 'cause', 'trigger')
+
+    def __init__(self, end, cause, trigger):
+        self.end, self.cause, self.trigger = end, cause, trigger
+
+
+class _Motion:
+    """A path being tracked in slices: its :class:`~.bounded_work.Job` and the work done."""
+
+    __slots__ = ('path', 'job', 'finish', 'worked', 'deferred')
+
+    def __init__(self, path, job, finish):
+        self.path, self.job, self.finish = path, job, finish   # finish(motion) -> Outcome
+        self.worked = 0.0           # seconds of tracking so far
+        self.deferred = False       # a Deferred was reported
+
+
 class Simulator:
     """A neck of ``len(modules)`` modules (bottom to top), started in the stable
     equilibrium whose basin holds ``initial_theta`` (one [t1, t2] per module).
 
     ``names`` label the modules in messages (default ``m0``, ``m1`` ...).  Raises
     ``ValueError`` for unusable limits or if there is no stable equilibrium to start from.
+    ``time_budget`` (s, None: unbounded) bounds the tracking work of one call,
+    ``work_limit`` (s) that of one path (see the module docstring); ``clock`` gives the
+    time they are measured in (``time.perf_counter``; tests inject a counting clock).
     """
 
-    def __init__(self, modules, initial_theta, limits=None, names=None):
+    def __init__(self, modules, initial_theta, limits=None, names=None, *,
+                 time_budget=DEFAULT_TIME_BUDGET, work_limit=DEFAULT_WORK_LIMIT,
+                 clock=time.perf_counter):
         modules = tuple(modules)
         if not modules:
             raise ValueError('a simulator needs at least one module')
@@ -121,7 +167,13 @@ class Simulator:
         self.state = None               # live verified equilibrium (N = 1: Equilibrium)
         self.jumps_total = 0
         self.revision = 0               # bumped whenever anything a status shows changes
+        self.time_budget, self.work_limit, self._clock = time_budget, work_limit, clock
+        self._deadline = math.inf       # of the running call
+        self._motion = None             # the path being tracked (a _Motion), or None
+        self._queued = None             # the _Path to track after it, or None
+        self.time_budget = None         # the start is settled in one call, however long
         started = self.reset(modules, initial_theta)
+        self.time_budget = time_budget
         if not started.accepted:
             raise ValueError(started.message)
 
@@ -140,6 +192,16 @@ class Simulator:
 
     def limits(self, index):
         return self._slots[index].limits
+
+    @property
+    def pending(self):
+        """True while a path is being tracked over several calls (or waits for one)."""
+        return self._motion is not None or self._queued is not None
+
+    def goal(self, index):
+        """The ModuleParams module ``index`` is heading to: the end of the pending paths,
+        else the live ones."""
+        return self._goals()[index]
 
     def module_nodes(self, index):
         """A1..A4 of a module, (4, 2), in the base frame of the bottom module."""
@@ -181,7 +243,7 @@ class Simulator:
     def limits_refusal(self, index, rho_min, rho_max):
         """Why [rho_min, rho_max] cannot be the module's limits now ('' if it can): the
         actuator and its pending target must stay inside."""
-        rho, target = self.modules[index].rho, self._slots[index].target
+        rho, target = self.goal(index).rho, self._slots[index].target
         if not rho_min <= rho <= rho_max:
             return (f'the actuator is at rho={rho!r}, outside the requested '
                     f'[rho_min, rho_max] = [{rho_min!r}, {rho_max!r}]')
@@ -208,12 +270,13 @@ class Simulator:
         refusal = self.rhos_refusal(targets)
         if refusal is not None:
             return refusal
+        self._start_call()
         warnings = tuple(w for w in (self._jump_ahead(i, rho, cause)
                                      for i, rho in targets.items()) if w is not None)
         if not any(self._slots[i].limits.max_rho_rate > 0.0 for i in targets):
             for index in targets:
                 self._slots[index].target = None
-            ends = {i: self.modules[i].with_rho(rho) for i, rho in targets.items()}
+            ends = {i: self.goal(i).with_rho(rho) for i, rho in targets.items()}
             moved = self._move(ends, cause, next(iter(targets)))
         else:
             moved = ev.combined(self._retarget(i, rho, now_ns, cause)
@@ -246,7 +309,7 @@ class Simulator:
         if not (math.isfinite(fx) and math.isfinite(fy)):
             return ev.refused(ev.NON_FINITE, f'({fx!r}, {fy!r}) is not finite')
         try:
-            check_supported(self.modules[index].with_(**dict(zip(FORCE_FIELDS[node], (fx, fy)))))
+            check_supported(self.goal(index).with_(**dict(zip(FORCE_FIELDS[node], (fx, fy)))))
         except InvalidParameterError as exc:        # beyond the supported magnitudes or groups
             return ev.refused(ev.OUT_OF_RANGE, str(exc))
         return None
@@ -261,8 +324,9 @@ class Simulator:
         refusal = self.parameters_refusal(changes)
         if refusal is not None:
             return refusal
+        self._start_call()
         advanced = [self._advance_module(i, now_ns) for i in changes]
-        ends = {i: self.modules[i].with_(**fields) for i, fields in changes.items()}
+        ends = {i: self.goal(i).with_(**fields) for i, fields in changes.items()}
         return ev.combined(advanced + [self._move(ends, cause, next(iter(changes)))])
 
     def parameters_refusal(self, changes):
@@ -272,7 +336,7 @@ class Simulator:
             for index, fields in changes.items():
                 if 'rho' in fields:
                     raise InvalidParameterError('rho is commanded, not set: use command_rho')
-                self.modules[index].with_(**fields)
+                self.goal(index).with_(**fields)
         except (InvalidParameterError, TypeError) as exc:
             return ev.refused(ev.PARAMETER_VALUE, str(exc))
         return None
@@ -285,34 +349,60 @@ class Simulator:
                                                                 limits.rho_max)
         if reason:
             return ev.refused(ev.PARAMETER_VALUE, reason)
+        self._start_call()
         advanced = self._advance_module(index, now_ns)
         self._slots[index].limits = limits
         self.revision += 1
         return advanced
 
     def advance(self, now_ns):
-        """Move every speed-limited actuator toward its target, up to time ``now_ns``."""
+        """Go on with a pending path (speed-limited actuators wait for it, this call
+        included), else move every speed-limited actuator toward its target, up to time
+        ``now_ns``."""
+        self._start_call()
+        if self.pending:
+            for slot in self._slots:
+                slot.stamp_ns = max(slot.stamp_ns, now_ns)
+            return self._continue()
         return ev.combined([self._advance_module(i, now_ns)
                             for i, slot in enumerate(self._slots) if slot.target is not None])
 
     def reset(self, modules, initial_theta):
         """Start over: settle ``modules`` from ``initial_theta`` (one [t1, t2] per module;
         None: the default start, see :func:`.start_state.start_state`); motion, jumps and
-        tracking status are cleared.  Refused (state unchanged) if no
-        stable equilibrium is reached."""
+        tracking status are cleared.  Refused (state unchanged) if no stable equilibrium
+        is reached.  A settle that needs more than the call's time budget (a loaded neck
+        can take seconds) goes on in the following calls like a path (a Deferred; the old
+        state until it ends); a settle that then fails is a TrackingFailure of the reset."""
         modules = tuple(modules)
         if len(modules) != len(self._slots):
             raise ValueError(f'{len(modules)} modules given, the simulator has '
                              f'{len(self._slots)}')
+        if self._motion is not None:
+            self._motion.job.cancel()
+        self._motion = self._queued = None
+        for slot in self._slots:
+            slot.target = None
+        self._start_call()
+        self._motion = _Motion(_Path(modules, 'reset', 0), Job(
+            functools.partial(start_state, modules, initial_theta), self._clock),
+            self._finish_reset)
+        return self._work_on(self._motion)
+
+    def _finish_reset(self, motion):
+        """Apply a finished settle: the new start state, or a refusal (a failure if the
+        reset was deferred: its call has long returned)."""
         try:
-            state = start_state(modules, initial_theta)
+            state = motion.job.result()
         except SOLVER_ERRORS as exc:
-            return ev.refused(ev.PARAMETER_VALUE,
-                              f'no stable equilibrium from initial_theta: {exc}')
-        self._set_state(modules, state)
+            text = f'no stable equilibrium from initial_theta: {exc}'
+            if motion.deferred:
+                return self._failed(0, f'reset: {text}')
+            return ev.refused(ev.PARAMETER_VALUE, text)
+        self._set_state(motion.path.end, state)
         self.jumps_total = 0
         for slot in self._slots:
-            slot.target, slot.last_jump, slot.tracking = None, None, 'ok'
+            slot.last_jump, slot.tracking = None, 'ok'
         return Outcome()
 
     # -- inside ---------------------------------------------------------------------------
@@ -327,14 +417,19 @@ class Simulator:
         return None
 
     def _jump_ahead(self, index, rho, cause):
-        """A :class:`JumpAhead` if ``rho`` lies beyond a fold or branch point of the live
-        branch's operation range (one module only: the exact range)."""
+        """A :class:`JumpAhead` if ``rho`` lies beyond an end of the live branch's
+        operation range where the tracker jumps (a fold, or a branch point where the
+        branch buckles: see :meth:`.OperationRange.jumps_at`).  One module only (the
+        exact range); none while a path is pending (the live branch is not where the
+        command starts)."""
+        if self.pending:
+            return None
         found = self._mechanism.operation_range(self.modules, self.state)
         if found is None:
             return None
         end = found.lower if rho < found.lower.rho else (
             found.upper if rho > found.upper.rho else None)
-        if end is None or end.kind == 'limit':
+        if end is None or not found.jumps_at(end):
             return None
         return JumpAhead(module=index, rho=rho, end=end, cause=cause)
 
@@ -344,20 +439,25 @@ class Simulator:
         slot = self._slots[index]
         if slot.limits.max_rho_rate <= 0.0:
             slot.target = None
-            return self._move({index: self.modules[index].with_rho(rho)}, cause, index)
+            return self._move({index: self.goal(index).with_rho(rho)}, cause, index)
         advanced = self._advance_module(index, now_ns)
-        slot.target = None if rho == self.modules[index].rho else rho
+        slot.target = None if rho == self.goal(index).rho else rho
         slot.cause = cause
         slot.stamp_ns = now_ns
         return advanced
 
     def _advance_module(self, index, now_ns):
-        """Move one actuator toward its target by max_rho_rate * elapsed time."""
+        """Move one actuator toward its target by max_rho_rate * elapsed time.  While a
+        path is pending the actuator waits for the mechanism (no motion accrues, so the
+        published actuator lengths keep to the speed limit: no catch-up step later)."""
         slot = self._slots[index]
         if slot.target is None:
             return Outcome()
+        if self.pending:
+            slot.stamp_ns = max(slot.stamp_ns, now_ns)
+            return Outcome()
         dt = max(0, now_ns - slot.stamp_ns) * 1e-9
-        rate, rho, target = slot.limits.max_rho_rate, self.modules[index].rho, slot.target
+        rate, rho, target = slot.limits.max_rho_rate, self.goal(index).rho, slot.target
         if rate <= 0.0 or abs(target - rho) <= rate * dt:
             new_rho, slot.target = target, None
         elif dt <= 0.0:
@@ -365,20 +465,79 @@ class Simulator:
         else:
             new_rho = rho + math.copysign(rate * dt, target - rho)
         slot.stamp_ns = now_ns
-        moved = self._move({index: self.modules[index].with_rho(new_rho)}, slot.cause, index)
+        moved = self._move({index: self.goal(index).with_rho(new_rho)}, slot.cause, index)
         if moved.status == ev.FAILED:
             slot.target = None
         return moved
 
+    # -- paths, in slices of bounded work ---------------------------------------------------
+
+    def _start_call(self):
+        """The running call's deadline: its tracking stops at the first check point past it."""
+        self._deadline = (math.inf if self.time_budget is None
+                          else self._clock() + self.time_budget)
+
+    def _goals(self):
+        if self._queued is not None:
+            return self._queued.end
+        return self._motion.path.end if self._motion is not None else self.modules
+
     def _move(self, ends, cause, trigger):
-        """Track the live state to the modules ``ends`` {index: ModuleParams} replace, on
-        one straight path; a failure keeps the last verified state."""
-        start = self.modules
-        end = tuple(ends.get(i, m) for i, m in enumerate(start))
-        if end == start:
+        """Track the state to the goal modules with ``ends`` {index: ModuleParams} in
+        place, on one straight path (after the pending one, merged with any that waits);
+        a failure keeps the last verified state."""
+        end = tuple(ends.get(i, m) for i, m in enumerate(self._goals()))
+        if self._motion is None and end == self.modules:
+            self._queued = None
             return Outcome()
+        self._queued = _Path(end, cause, trigger)
+        return self._continue()
+
+    def _continue(self):
+        """Track the pending path, then the one waiting, until done or out of time."""
+        outcomes = []
+        while self._motion is not None or self._queued is not None:
+            if self._motion is None:
+                if outcomes and self._clock() > self._deadline:
+                    break
+                path, self._queued = self._queued, None
+                if path.end == self.modules:
+                    continue
+                self._motion = _Motion(path, Job(functools.partial(
+                    self._mechanism.track, self.modules, path.end, self.state), self._clock),
+                    self._finish)
+            outcome = self._work_on(self._motion)
+            if outcome is None:
+                break
+            outcomes.append(outcome)
+        return ev.combined(outcomes)
+
+    def _work_on(self, motion):
+        """Resume ``motion`` until the deadline: its outcome once it ends (or is given up
+        or first deferred: a Deferred), else None."""
+        began = self._clock()
+        if motion.job.run(self._deadline):
+            self._motion = None
+            return motion.finish(motion)
+        motion.worked += self._clock() - began
+        path = motion.path
+        if self.work_limit is not None and motion.worked > self.work_limit:
+            motion.job.cancel()
+            self._motion = None
+            return self._failed(path.trigger, f'{path.cause}: gave up after '
+                                              f'{motion.worked:.3g} s of tracking')
+        if motion.deferred:
+            return None
+        motion.deferred = True
+        return Outcome(events=(Deferred(module=path.trigger, cause=path.cause, text=(
+            f'tracking needs more than the time budget of {self.time_budget:g} s per '
+            f'call; it goes on in the next calls'),),))
+
+    def _finish(self, finished):
+        """Apply a tracked path's result: the state it reached, its jumps, its status."""
+        cause, trigger = finished.path.cause, finished.path.trigger
         try:
-            motion = self._mechanism.track(start, end, self.state)
+            motion = finished.job.result()
         except SOLVER_ERRORS as exc:
             return self._failed(trigger, f'{cause}: {exc}')
         eigenvalues = motion.final.eigenvalues

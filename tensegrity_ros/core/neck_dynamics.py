@@ -47,8 +47,10 @@ class NeckSnap:
     solution: OdeSolution = field(repr=False)
 
 
-class _Neck:
-    """Equations of motion of an N-module neck in node coordinates along a rho ramp."""
+class NeckEquations:
+    """Equations of motion of an N-module neck in node coordinates along a rho ramp.
+
+    ``damping`` is one pivot damping (N m s/rad) for every pivot, or one per module."""
 
     def __init__(self, start: Stack, ramp: RhoRamp, damping: float):
         self.n = n = len(start)
@@ -56,7 +58,9 @@ class _Neck:
             if m.m1 <= 0.0 or m.m2 <= 0.0:
                 raise InvalidParameterError(f'dynamics needs positive rod masses, got module '
                                             f'{i}: m1={m.m1!r}, m2={m.m2!r}')
-        self.ramp, self.damping = ramp, transient.checked_damping(damping)
+        self.ramp = ramp
+        self.damping = _damping_vector(damping, n)
+        self.pivot_damping = np.repeat(self.damping, 2)      # one per local angle
         self.modules = start.modules
         a1 = [0] + [3 + 2 * i for i in range(n - 1)]
         a2 = [1] + [2 + 2 * i for i in range(n - 1)]
@@ -139,7 +143,7 @@ class _Neck:
             pull = k * (x[a] - x[b])
             f[a] -= pull
             f[b] += pull
-        return f.ravel() - self.damping * jac.T @ (jac @ v.ravel())
+        return f.ravel() - jac.T @ (self.pivot_damping * (jac @ v.ravel()))
 
     # -- the ODE -------------------------------------------------------------------------
     def _solve(self, t, y):
@@ -224,7 +228,7 @@ class _Neck:
     def settled(self, y):
         """Rest angles if the damped energy above the nearby minimum is below the least
         energy of any state outside the tolerance box (linearised), else None."""
-        if self.damping == 0.0:
+        if not np.any(self.damping > 0.0):
             return None
         t_end = self.ramp.duration
         angles, rates = self.rates(t_end, y)
@@ -242,6 +246,14 @@ class _Neck:
         shortest = min(min(m.L1, m.L2) for m in self.modules)
         floor = 0.5 * stiffness * (0.5 * SETTLE_TOLERANCE * shortest) ** 2
         return eq.theta.ravel() if excess < 0.5 * floor else None
+
+
+def _damping_vector(damping, n):
+    """Pivot damping per module (N values) from one value or N."""
+    values = np.atleast_1d(np.asarray(damping, dtype=object))
+    if values.shape not in ((1,), (n,)):
+        raise InvalidParameterError(f'damping must have 1 or {n} values, got {damping!r}')
+    return np.broadcast_to([transient.checked_damping(d) for d in values], (n,)).copy()
 
 
 def _rho_vector(values, n, name):
@@ -264,7 +276,7 @@ def simulate_neck_snap(stack: Stack, rho_end, rate: float, damping: float, theta
     rho1 = _rho_vector(rho_end, len(stack), 'rho_end')
     end = Stack(tuple(m.with_(rho=float(r)) for m, r in zip(stack.modules, rho1)))
     ramp = RhoRamp(tuple(m.rho for m in stack.modules), tuple(rho1), float(rate))
-    system = _Neck(stack, ramp, damping)
+    system = NeckEquations(stack, ramp, damping)
     start = settle_stack(stack, theta_guess)
     solution, events, rest = transient.run(system, system.start_state(start.nodes), hold,
                                            settings)

@@ -94,7 +94,7 @@ def test_the_quasi_static_default_has_no_velocities_and_no_dynamic_figures(harne
     ({'m0.m1': 0.0}, 'm0.m1 must be > 0'),
     ({'m0.damping': 0.0}, 'm0.damping must be > 0'),
     ({'m0.max_rho_rate': 0.0}, 'm0.max_rho_rate must be > 0'),
-    ({'modules': ['m0', 'm1']}, 'one module, 2 modules given'),
+    ({'modules': ['m0', 'm1']}, 'm1.m1 must be > 0'),     # a neck: every module's masses
 ])
 def test_a_dynamics_mode_it_cannot_run_is_refused_at_startup(ros, overrides, words):
     with pytest.raises(ConfigurationError, match=words):

@@ -109,9 +109,13 @@ def test_a_dynamics_mode_without_masses_speed_or_damping_is_refused(bad, text):
         make(**bad)
 
 
-def test_a_neck_is_refused():
-    with pytest.raises(ValueError, match='one module'):
-        DynamicSimulator([FIG8A, FIG8A], [LOWER, LOWER], [LIMITS, LIMITS], damping=[0.1, 0.1])
+def test_a_neck_module_without_mass_or_damping_is_refused():
+    """A neck is simulated (since issue 15), but each module needs its masses and damping."""
+    with pytest.raises(ValueError, match='m1'):
+        DynamicSimulator([FIG8A, FIG8A.with_(m1=0.0)], [LOWER, LOWER], [LIMITS, LIMITS],
+                         damping=[0.1, 0.1])
+    with pytest.raises(ValueError, match='damping'):
+        DynamicSimulator([FIG8A, FIG8A], [LOWER, LOWER], [LIMITS, LIMITS], damping=[0.1, 0.0])
 
 
 def test_a_load_change_moves_the_rods_from_where_they_are():

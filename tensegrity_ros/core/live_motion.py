@@ -80,8 +80,10 @@ class LiveMotion:
             ramp_end = self._t0 + self._system.ramp.duration
             stop = min(t, ramp_end) if self.t < ramp_end else t
             self._integrate(stop)
-            if self.t >= ramp_end and self.rho != self.target:
-                self.rho = self.target                 # the ramp's end: held from here
+            if self.t >= ramp_end and self._system.ramp.duration > 0.0:
+                # the ramp's end (even where its last rho rounds to the target): held from
+                # here, and the state crosses the actuators' velocity step (_carried)
+                self.rho = self.target
                 self._segment(self.t)
             report = self._rest_report() if self._now_at_rest() else None
             if report is not None:

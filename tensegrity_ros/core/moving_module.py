@@ -15,7 +15,7 @@ import numpy as np
 from . import transient
 from .dynamics import ModuleEquations
 from .live_motion import LiveMotion
-from .module import InvalidParameterError, ModuleParams
+from .module import InvalidParameterError, ModuleParams, node_positions
 from .tracking import settle
 from .transient import RhoRamp, SolverSettings, wrap
 
@@ -52,6 +52,16 @@ class MovingModule(LiveMotion):
         """Force (N) on A2 along +x now, rod 2's inertia included."""
         return float(self._system.actuator_force(np.array([self._local()]),
                                                  self.y[None, :])[0])
+
+    @property
+    def actuator_forces(self):
+        """(actuator_force,): the neck's interface (:class:`~.moving_neck.MovingNeck`)."""
+        return np.array([self.actuator_force])
+
+    @property
+    def nodes(self):
+        """A1..A4 now (4, 2): the node table of a one-module neck."""
+        return node_positions(self.params.with_(rho=self.rho), self.theta)
 
     @property
     def rho_dot(self):

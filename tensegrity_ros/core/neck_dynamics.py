@@ -59,7 +59,7 @@ class NeckEquations:
                 raise InvalidParameterError(f'dynamics needs positive rod masses, got module '
                                             f'{i}: m1={m.m1!r}, m2={m.m2!r}')
         self.ramp = ramp
-        self.damping = _damping_vector(damping, n)
+        self.damping = damping_vector(damping, n)
         self.pivot_damping = np.repeat(self.damping, 2)      # one per local angle
         self.modules = start.modules
         a1 = [0] + [3 + 2 * i for i in range(n - 1)]
@@ -225,6 +225,23 @@ class NeckEquations:
             u += 0.5 * k * (d @ d)
         return u
 
+    def _lagrangian_at(self, nodes, rho):
+        """U - lambda . (|d|^2 - l^2) with the multipliers of the equilibrium ``nodes``:
+        stationary there in every direction, so that a drift of the rigid lengths (the
+        Baumgarte-stabilised constraints hold to ~1e-10 m only) changes it to second
+        order, not by the chord forces times the drift."""
+        rows, _, _ = self.constraint_rows(nodes, np.zeros_like(nodes))
+        gradient = -self.forces(nodes, np.zeros_like(nodes), np.zeros((2 * self.n, 2 * self.nodes)))
+        lam = np.linalg.lstsq(rows[:, 4:].T, gradient[4:], rcond=None)[0]
+        length = np.asarray(self.lengths(rho, np.zeros_like(rho))[0], dtype=np.longdouble)
+
+        def lagrangian(x):
+            x = np.asarray(x, dtype=np.longdouble)
+            d = np.array([x[a] - x[b] for a, b, _, _ in self.rigid])
+            return self.potential(x) - np.sum(lam.astype(np.longdouble) * (
+                np.sum(d * d, axis=1) - length ** 2))
+        return lagrangian
+
     def settled(self, y):
         """Rest angles if the damped energy above the nearby minimum is below the least
         energy of any state outside the tolerance box (linearised), else None."""
@@ -239,16 +256,17 @@ class NeckEquations:
             eq = settle_stack(end, angles.reshape(self.n, 2))
         except (RuntimeError, ValueError):
             return None
-        x, v, _, _ = self.full(t_end, y)
+        x, v, rho, _ = self.full(t_end, y)
         kinetic = 0.5 * v.ravel()[4:] @ self.mass @ v.ravel()[4:]
-        excess = float(self.potential(x) - self.potential(eq.nodes)) + kinetic
+        lagrangian = self._lagrangian_at(eq.nodes, rho)
+        excess = float(lagrangian(x) - lagrangian(eq.nodes)) + kinetic
         stiffness = min(float(eq.eigenvalues[0]), float(np.linalg.eigvalsh(self.mass)[0]))
         shortest = min(min(m.L1, m.L2) for m in self.modules)
         floor = 0.5 * stiffness * (0.5 * SETTLE_TOLERANCE * shortest) ** 2
         return eq.theta.ravel() if excess < 0.5 * floor else None
 
 
-def _damping_vector(damping, n):
+def damping_vector(damping, n):
     """Pivot damping per module (N values) from one value or N."""
     values = np.atleast_1d(np.asarray(damping, dtype=object))
     if values.shape not in ((1,), (n,)):

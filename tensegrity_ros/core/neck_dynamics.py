@@ -89,6 +89,13 @@ class NeckEquations:
         self.loads = loads.ravel()
         self.springs, self.rigid = springs, rigid
         self.chord_rows = [j for j, r in enumerate(rigid) if r[3] is not None]
+        # index arrays: the right-hand side runs on whole arrays, not per module
+        self._frame_nodes = tuple(np.array(a) for a in (a1, a2, a3, a4))
+        self._spring_ends = (np.array([a for a, _, _ in springs]),
+                             np.array([b for _, b, _ in springs]))
+        self._spring_k = np.array([k for _, _, k in springs], dtype=float)[:, None]
+        self._rigid_ends = (np.array([a for a, _, _, _ in rigid]),
+                            np.array([b for _, b, _, _ in rigid]))
 
     # -- kinematics --------------------------------------------------------------------
     def full(self, t, y):
@@ -111,38 +118,40 @@ class NeckEquations:
 
     def angle_jacobian(self, x):
         """Local angles (2N) and d(angles)/d(all coordinates), (2N, 2 nodes)."""
+        a1, a2, a3, a4 = self._frame_nodes
+        e, v3, v4 = x[a2] - x[a1], x[a3] - x[a1], x[a4] - x[a2]
+        phi_e, phi_3, phi_4 = (np.arctan2(d[:, 1], d[:, 0]) for d in (e, v3, v4))
         angles = np.empty(2 * self.n)
+        angles[0::2] = phi_3 - phi_e
+        angles[1::2] = math.pi + phi_e - phi_4
         jac = np.zeros((2 * self.n, 2 * self.nodes))
-        for i, (a1, a2, a3, a4) in enumerate(self.frames):
-            e, v3, v4 = x[a2] - x[a1], x[a3] - x[a1], x[a4] - x[a2]
-            phi_e, phi_3, phi_4 = (math.atan2(d[1], d[0]) for d in (e, v3, v4))
-            angles[2 * i] = phi_3 - phi_e
-            angles[2 * i + 1] = math.pi + phi_e - phi_4
-            for row, sign, (head, tail), d in ((2 * i, 1, (a3, a1), v3), (2 * i, -1, (a2, a1), e),
-                                               (2 * i + 1, 1, (a2, a1), e),
-                                               (2 * i + 1, -1, (a4, a2), v4)):
-                g = sign * np.array([-d[1], d[0]]) / (d @ d)
-                jac[row, 2 * head:2 * head + 2] += g
-                jac[row, 2 * tail:2 * tail + 2] -= g
+        first = 2 * np.arange(self.n)[:, None]          # row of t1; t2's is the next
+        xy = np.arange(2)
+        for row, sign, head, tail, d in ((first, 1, a3, a1, v3), (first, -1, a2, a1, e),
+                                         (first + 1, 1, a2, a1, e),
+                                         (first + 1, -1, a4, a2, v4)):
+            g = sign * np.column_stack([-d[:, 1], d[:, 0]]) / np.einsum('ij,ij->i', d, d)[:, None]
+            jac[row, 2 * head[:, None] + xy] += g     # one entry per module: no repeats
+            jac[row, 2 * tail[:, None] + xy] -= g
         return wrap(angles), jac
 
     def constraint_rows(self, x, v):
         """Phi_q over all coordinates (rigid, 2 nodes), and d, d' per element."""
+        a, b = self._rigid_ends
+        d, dv = x[a] - x[b], v[a] - v[b]
         rows = np.zeros((len(self.rigid), 2 * self.nodes))
-        d = np.array([x[a] - x[b] for a, b, _, _ in self.rigid])
-        dv = np.array([v[a] - v[b] for a, b, _, _ in self.rigid])
-        for j, (a, b, _, _) in enumerate(self.rigid):
-            rows[j, 2 * a:2 * a + 2] = 2.0 * d[j]
-            rows[j, 2 * b:2 * b + 2] = -2.0 * d[j]
+        element = np.arange(len(self.rigid))[:, None]
+        rows[element, 2 * a[:, None] + np.arange(2)] = 2.0 * d
+        rows[element, 2 * b[:, None] + np.arange(2)] = -2.0 * d
         return rows, d, dv
 
     def forces(self, x, v, jac):
         """Springs, loads, weights and pivot damping on all coordinates."""
         f = self.loads.copy().reshape(-1, 2)
-        for a, b, k in self.springs:
-            pull = k * (x[a] - x[b])
-            f[a] -= pull
-            f[b] += pull
+        a, b = self._spring_ends
+        pull = self._spring_k * (x[a] - x[b])
+        np.add.at(f, a, -pull)
+        np.add.at(f, b, pull)
         return f.ravel() - jac.T @ (self.pivot_damping * (jac @ v.ravel()))
 
     # -- the ODE -------------------------------------------------------------------------

@@ -191,9 +191,11 @@ class NeckEquations:
         return np.concatenate([[reaction], 2.0 * lam[self.chord_rows] * length[self.chord_rows]])
 
     def onset_events(self):
-        def event(k):
-            return lambda t, y: self.rates(t, y)[1][k] ** 2 - ONSET_SPEED ** 2
-        return [event(k) for k in range(2 * self.n)]
+        """One event: the fastest local angle rate crosses ONSET_SPEED (one evaluation of
+        the rates per check, not one per angle)."""
+        def fastest(t, y):
+            return float(np.max(self.rates(t, y)[1] ** 2)) - ONSET_SPEED ** 2
+        return [fastest]
 
     # -- start and rest ------------------------------------------------------------------
     def start_state(self, nodes):

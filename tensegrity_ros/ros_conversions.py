@@ -233,7 +233,8 @@ def dynamic_figures(figures, modules=()):
               ('quasi_static_theta2', predicted['theta2'])]
     if modules:
         every = figures['modules']
-        pairs += [(f'onset_{m}_rho', rho) for m, rho in zip(modules, every['onset_rho'])]
+        onsets = every['onset_rho'] or [None] * len(modules)
+        pairs += [(f'onset_{m}_rho', rho) for m, rho in zip(modules, onsets)]
         for side, thetas in (('final', every['final_theta']),
                              ('quasi_static', every['quasi_static_theta'])):
             for m, theta in zip(modules, thetas or [(None, None)] * len(modules)):

@@ -269,10 +269,16 @@ class DynamicSimulator(Simulator):
         self._set_state(end, eq)
         for slot in self._slots:
             slot.tracking = 'ok'
-        if report is None:
-            return Outcome()
-        jump = self._snap_jump(start, start_state, eq, report)
+        jump = self._snap_jump(start, start_state, eq, report or self._creep_report())
         return Outcome(events=(jump,)) if jump is not None else Outcome()
+
+    def _creep_report(self):
+        """The figures of a motion that never reached the onset speed (heavy damping can
+        creep across a fold): no snap figures, only where the rods rest."""
+        report = dict.fromkeys(('onset_rho', 'onset_time', 'peak_speed',
+                                'peak_actuator_force', 'overshoot', 'settle_time'))
+        report.update(settled=True, final=self._moving.final_state())
+        return report
 
     def _snap_jump(self, start, start_state, eq, report):
         """A Jump for a snap that came to rest, with the quasi-static prediction of the
@@ -286,9 +292,10 @@ class DynamicSimulator(Simulator):
         landing = np.reshape(np.asarray(eq.theta, dtype=float), (-1, 2))
         elsewhere = predicted is None or bool(
             np.max(np.abs(wrap(landing - predicted))) > SAME_LANDING)
-        if raw is None and not elsewhere:
-            return None
-        onset_rhos = _per_module(report['onset_rho'])
+        if raw is None and (not elsewhere or report['onset_rho'] is None):
+            return None         # fast along its branch, or slow with no fold on the way
+        onset_rhos = (_per_module(report['onset_rho']) if report['onset_rho'] is not None
+                      else tuple(p.rho for p in start))
         if raw is None:     # inertia alone: no fold on the quasi-static path
             raw = ('inertial', 1.0, tuple(p.with_(rho=r) for p, r in zip(start, onset_rhos)),
                    np.reshape(start_state.theta, (-1, 2)), None, False)

@@ -179,5 +179,9 @@ class LiveMotion:
             ts, by_segment(lambda s, t, y: self._readings(s, t, y)[0]),
             by_segment(lambda s, t, y: self._readings(s, t, y)[1]),
             by_segment(self._forces), record['onset'], rest, record['onset']))
-        report['final'] = self._final(self.y)
+        report['final'] = self.final_state()
         return report
+
+    def final_state(self):
+        """The state now as a summary's ``final`` (angles and the fastest rate)."""
+        return self._final(self.y)

@@ -1,23 +1,26 @@
 """A neck driven in real time: ticks reproduce the offline transient of the same profile,
 N = 1 equals the one-module live motion (other coordinates, other equations), the
-energy is kept without damping and the dissipated power is sum c theta'^2 with it (from
-the test's own forward kinematics), commands and design changes act on the moving neck,
+energy is kept without damping and the dissipated power is sum c theta'^2 with it, small
+oscillations have the frequencies sqrt(eig(M^-1 H_reduced)) (all from the test's own
+forward kinematics), commands and design changes act on the moving neck,
 and heavy damping lands where the quasi-static stack tracker lands."""
 import numpy as np
 import pytest
-from scipy.integrate import simpson
+from scipy.integrate import simpson, solve_ivp
+from scipy.linalg import eigh, null_space
 
 from tensegrity_ros.core import InvalidParameterError, ModuleParams
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.events import Jump
 from tensegrity_ros.core.moving_module import MovingModule
 from tensegrity_ros.core.moving_neck import MovingNeck
-from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
+from tensegrity_ros.core.neck_dynamics import NeckEquations, simulate_neck_snap
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 from tensegrity_ros.core.stack import Stack, settle_stack
+from tensegrity_ros.core.transient import RhoRamp
 
 from test_moving_module import drive
-from test_neck_dynamics import FIG8A, NECK, energy
+from test_neck_dynamics import FIG8A, NECK, energy, forward
 
 # config/neck.yaml: three modules, 20 g rods, 0.5 N on each head node; its m2 has a fold
 # at rho = 0.1127 on the way up
@@ -160,3 +163,58 @@ def test_heavy_damping_lands_where_the_quasi_static_neck_lands():
     assert figures['onset_rho'] == figures['modules']['onset_rho'][2]
     assert figures['final']['theta1'] == pytest.approx(static.state.theta[2][0], abs=1e-6)
     assert sim.stable and [sim.live(i).theta1_dot for i in range(3)] == [0.0] * 3
+
+
+def _modal_reference(modules, rho, theta):
+    """Small-oscillation frequencies sqrt(eig(M^-1 H_reduced)) of a neck at rest, in its
+    local angles q (2N) under the chord constraints, from the test's own kinematics:
+    M is the Hessian of the kinetic energy in q', H the Hessian of U - lambda . c."""
+    q0, k = np.asarray(theta, dtype=float).ravel(), 2 * len(modules)
+    eye = np.eye(k)
+
+    def potential(q):
+        return energy(modules, rho[0], q.reshape(-1, 2), np.zeros((len(modules), 2)))[1]
+
+    def chords(q):                       # |A3(i) - A4(i)|^2 - rho(i+1)^2, complex-safe
+        x = forward(modules, rho[0], q.reshape(-1, 2))
+        return np.array([(x[2 + 2 * i] - x[3 + 2 * i]) @ (x[2 + 2 * i] - x[3 + 2 * i])
+                         - rho[i + 1] ** 2 for i in range(len(modules) - 1)])
+
+    def chord_jacobian(q):               # complex step: exact to rounding
+        return np.array([chords(q + 1e-30j * e).imag / 1e-30 for e in eye]).T
+
+    h = 1e-4
+    grad = np.array([(potential(q0 + h * e) - potential(q0 - h * e)) / (2 * h) for e in eye])
+    hess = np.array([[(potential(q0 + h * a + h * b) - potential(q0 + h * a - h * b)
+                       - potential(q0 - h * a + h * b) + potential(q0 - h * a - h * b))
+                      / (4 * h * h) for b in eye] for a in eye])
+    jc = chord_jacobian(q0)
+    lam = np.linalg.lstsq(jc.T, grad, rcond=None)[0]
+    chord_hess = np.array([(chord_jacobian(q0 + h * e) - chord_jacobian(q0 - h * e)) / (2 * h)
+                           for e in eye])                    # [l, i, m] = d2 c_i / dq_l dq_m
+    lagrangian = hess - np.einsum('i,lim->lm', lam, chord_hess)
+    kinetic = np.array([[energy(modules, rho[0], q0.reshape(-1, 2), (a + b).reshape(-1, 2))[0]
+                         for b in eye] for a in eye]) - potential(q0)   # T(e_a + e_b)
+    diagonal = np.diag(kinetic) / 4.0                        # T(2 e_a) / 4 = T(e_a)
+    mass = kinetic - np.add.outer(diagonal, diagonal)        # T(e_a + e_b) - T(e_a) - T(e_b)
+    tangent = null_space(jc) if len(modules) > 1 else eye
+    values, vectors = eigh(tangent.T @ lagrangian @ tangent, tangent.T @ mass @ tangent)
+    return np.sqrt(values), tangent @ vectors
+
+
+def test_small_oscillations_of_the_neck_have_the_frequencies_of_its_reduced_hessian():
+    rest = settle_stack(NECK, [[1.2, 1.2], [1.0, 1.0]])
+    rho = [m.rho for m in NECK.modules]
+    omega, shapes = _modal_reference(NECK.modules, rho, rest.theta)
+    system = NeckEquations(NECK, RhoRamp(tuple(rho), tuple(rho), 1.0), 0.0)
+    for mode in range(len(omega)):
+        y0 = system.with_angle_rates(0.0, system.start_state(rest.nodes),
+                                     1e-6 * shapes[:, mode] / np.max(np.abs(shapes[:, mode])))
+        watched = int(np.argmax(np.abs(shapes[:, mode])))
+        period = 2 * np.pi / omega[mode]
+        sol = solve_ivp(system.rhs, (0.0, 5.2 * period), y0, method='DOP853', rtol=1e-12,
+                        atol=1e-15, events=lambda t, y: system.rates(t, y)[1][watched])
+        crossings = sol.t_events[0]
+        measured = np.pi * (len(crossings) - 1) / (crossings[-1] - crossings[0])
+        assert len(crossings) >= 9
+        assert measured == pytest.approx(omega[mode], rel=1e-6), mode     # ~6e-8 seen

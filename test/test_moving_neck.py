@@ -6,6 +6,7 @@ forward kinematics), commands and design changes act on the moving neck,
 and heavy damping lands where the quasi-static stack tracker lands."""
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
 from scipy.integrate import simpson, solve_ivp
 from scipy.linalg import eigh, null_space
 
@@ -218,3 +219,28 @@ def test_small_oscillations_of_the_neck_have_the_frequencies_of_its_reduced_hess
         measured = np.pi * (len(crossings) - 1) / (crossings[-1] - crossings[0])
         assert len(crossings) >= 9
         assert measured == pytest.approx(omega[mode], rel=1e-6), mode     # ~6e-8 seen
+
+
+@settings(max_examples=3, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(st.integers(0, 2), st.floats(0.075, 0.115), st.integers(1, 10)),
+                min_size=1, max_size=3))
+def test_whatever_the_commands_a_moving_neck_claims_no_stable_state_and_ends_at_rest(steps):
+    """Commands to random modules and targets at random ticks (50 ms)."""
+    limits = [ModuleLimits(0.05, 0.15, max_rho_rate=0.05)] * 3
+    sim = DynamicSimulator(BIRD.modules, UPRIGHT, limits, damping=[0.05] * 3)
+    now, targets = 0, [m.rho for m in BIRD.modules]
+    for index, rho, ticks in steps:
+        assert sim.command_rho(index, rho, now).accepted
+        targets[index] = rho
+        for _ in range(ticks):
+            now += 50_000_000
+            sim.advance(now)
+            assert not (sim.moving and (sim.stable or sim.status(index).level == 'ok'))
+    while sim.moving and now < 60 * 10**9:
+        now += 50_000_000
+        sim.advance(now)
+    assert not sim.moving and sim.stable
+    assert [sim.module(i)[0].rho for i in range(3)] == targets
+    rest = settle_stack(Stack(sim.modules), np.reshape(sim.state.theta, (3, 2)))
+    assert sim.state.theta == pytest.approx(rest.theta, abs=1e-6)

@@ -153,7 +153,11 @@ def test_heavy_damping_lands_where_the_quasi_static_neck_lands():
         now += 50_000_000
         jumps += sim.advance(now).of_type(Jump)
     static = Simulator(BIRD.modules, UPRIGHT, [ModuleLimits(0.05, 0.15)] * 3)
-    [static_jump] = static.command_rho(2, 0.12, 0).of_type(Jump)
+    static_jumps, t = list(static.command_rho(2, 0.12, 0).of_type(Jump)), 0
+    while getattr(static, 'pending', False):   # a simulator that bounds its work per call
+        t += 1                                 # finishes the path in advance()
+        static_jumps += static.advance(t).of_type(Jump)
+    [static_jump] = static_jumps
     [jump] = jumps
     assert (jump.kind, jump.module) == (static_jump.kind, 2)
     assert jump.modules[2].rho == pytest.approx(static_jump.modules[2].rho, abs=1e-9)

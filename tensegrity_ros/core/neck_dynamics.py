@@ -96,6 +96,7 @@ class NeckEquations:
         self._spring_k = np.array([k for _, _, k in springs], dtype=float)[:, None]
         self._rigid_ends = (np.array([a for a, _, _, _ in rigid]),
                             np.array([b for _, b, _, _ in rigid]))
+        self._jacobian_layout()
 
     # -- kinematics --------------------------------------------------------------------
     def full(self, t, y):
@@ -116,24 +117,40 @@ class NeckEquations:
         rate = np.array([0.0 if r[3] is None else rho_dot[r[3]] for r in self.rigid])
         return length, rate
 
+    def _jacobian_layout(self):
+        """Where each term of the angle Jacobian goes.  t1 of module i is
+        phi(A1A3) - phi(A1A2), t2 is pi + phi(A1A2) - phi(A2A4); d phi(d) / d head =
+        perp(d) / |d|^2 = -d phi / d tail.  Terms (4, N, 2): (row, sign, head, tail, d)
+        = (t1, +, A3, A1, A1A3), (t1, -, A2, A1, A1A2), (t2, +, A2, A1, A1A2),
+        (t2, -, A4, A2, A2A4); flat indices into the (2N, 2 nodes) matrix, heads then
+        tails, so that one bincount sums every contribution."""
+        a1, a2, a3, a4 = self._frame_nodes
+        first = 2 * np.arange(self.n)
+        rows = np.array([first, first, first + 1, first + 1])[:, :, None]
+        xy = np.arange(2)
+        heads = np.array([a3, a2, a2, a4])[:, :, None] * 2 + xy
+        tails = np.array([a1, a1, a1, a2])[:, :, None] * 2 + xy
+        width = 2 * self.nodes
+        self._jac_index = np.concatenate([(rows * width + heads).ravel(),
+                                          (rows * width + tails).ravel()])
+        sign = np.broadcast_to(np.array([1.0, -1.0, 1.0, -1.0])[:, None, None],
+                               (4, self.n, 2)).ravel()
+        self._jac_sign = np.concatenate([sign, -sign])
+
     def angle_jacobian(self, x):
         """Local angles (2N) and d(angles)/d(all coordinates), (2N, 2 nodes)."""
         a1, a2, a3, a4 = self._frame_nodes
-        e, v3, v4 = x[a2] - x[a1], x[a3] - x[a1], x[a4] - x[a2]
-        phi_e, phi_3, phi_4 = (np.arctan2(d[:, 1], d[:, 0]) for d in (e, v3, v4))
+        d = np.stack([x[a3] - x[a1], x[a2] - x[a1], x[a4] - x[a2]])     # A1A3, A1A2, A2A4
+        phi = np.arctan2(d[:, :, 1], d[:, :, 0])
         angles = np.empty(2 * self.n)
-        angles[0::2] = phi_3 - phi_e
-        angles[1::2] = math.pi + phi_e - phi_4
-        jac = np.zeros((2 * self.n, 2 * self.nodes))
-        first = 2 * np.arange(self.n)[:, None]          # row of t1; t2's is the next
-        xy = np.arange(2)
-        for row, sign, head, tail, d in ((first, 1, a3, a1, v3), (first, -1, a2, a1, e),
-                                         (first + 1, 1, a2, a1, e),
-                                         (first + 1, -1, a4, a2, v4)):
-            g = sign * np.column_stack([-d[:, 1], d[:, 0]]) / np.einsum('ij,ij->i', d, d)[:, None]
-            jac[row, 2 * head[:, None] + xy] += g     # one entry per module: no repeats
-            jac[row, 2 * tail[:, None] + xy] -= g
-        return wrap(angles), jac
+        angles[0::2] = phi[0] - phi[1]
+        angles[1::2] = math.pi + phi[1] - phi[2]
+        perp = np.stack([-d[:, :, 1], d[:, :, 0]], axis=-1) / np.einsum(
+            'kij,kij->ki', d, d)[:, :, None]
+        terms = perp[[0, 1, 1, 2]].ravel()
+        values = np.concatenate([terms, terms]) * self._jac_sign
+        jac = np.bincount(self._jac_index, values, minlength=4 * self.n * self.nodes)
+        return wrap(angles), jac.reshape(2 * self.n, 2 * self.nodes)
 
     def constraint_rows(self, x, v):
         """Phi_q over all coordinates (rigid, 2 nodes), and d, d' per element."""

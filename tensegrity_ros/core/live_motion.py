@@ -26,8 +26,9 @@ class LiveMotion:
 
     Subclass hooks: ``_equations()`` (the segment's equations from ``params``, ``rho``,
     ``target``, ``max_rate``, ``damping``), ``_carried(old, t_local, y, new)`` (the state
-    across a segment boundary; ``old`` None: ``y`` is the ``start`` given, at rest), ``_readings(system, t_local, ys)`` (angles and rates of
-    samples), ``_forces(system, t_local, ys)``, ``_final(y)``, ``_checked_target(target)``,
+    across a segment boundary; ``old`` None: ``y`` is the ``start`` given, at rest),
+    ``_readings(system, t_local, ys)`` (angles and rates of samples),
+    ``_forces(system, t_local, ys)``, ``_final(y)``, ``_checked_target(target)``,
     ``_checked_rate(rate)``, ``_checked_damping(damping)`` and ``_rho_of(array)``.
     """
 

@@ -9,6 +9,8 @@ seconds per wall-clock second: above 1 a node could integrate live); last the no
 dynamics mode, a DynamicSimulator in 20 ms ticks (publish_rate 50 Hz) through the same
 snap, side by side with the bare MovingModule in the same ticks (the ratio is the
 simulator's bookkeeping: status, the verified rest state, the jump beside the tracker).
+Last the live neck: config/neck.yaml's fold (m2's rho 0.08 -> 0.12 at 0.05 m/s) in 20 ms
+ticks, a MovingNeck and a DynamicSimulator, real-time factors beside the module's.
 
     python benchmarks/bench_snap.py
 """
@@ -17,6 +19,7 @@ import time
 from tensegrity_ros.core import ModuleParams, settle, simulate_snap, track_module
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.moving_module import MovingModule
+from tensegrity_ros.core.moving_neck import MovingNeck
 from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
 from tensegrity_ros.core.simulator import ModuleLimits
 from tensegrity_ros.core.stack import Stack
@@ -46,6 +49,7 @@ def main():
     neck_vs_module(p)
     real_time_factor(p)
     dynamics_mode_vs_moving_module(p)
+    live_neck()
 
 
 def neck_vs_module(p):
@@ -93,6 +97,35 @@ def dynamics_mode_vs_moving_module(p, ticks=800):
     print(f'dynamics mode, {ticks} ticks of 20 ms (16 s simulated): DynamicSimulator '
           f'{wall_sim:.2f} s wall (real-time factor {ticks * 0.02 / wall_sim:.1f}), bare '
           f'MovingModule {wall_bare:.2f} s, ratio {wall_sim / wall_bare:.2f}')
+
+
+def live_neck(ticks=100):
+    """config/neck.yaml across m2's fold: 2 s simulated (the snap rests after ~1.3 s)."""
+    base = dict(L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02)
+    modules = (ModuleParams(rho=0.09, **base), ModuleParams(rho=0.085, **base),
+               ModuleParams(rho=0.08, f3y=-0.5, f4y=-0.5, **base))
+    upright = [[0.754, 0.754], [0.813, 0.813], [0.831, 0.831]]
+
+    def bare():
+        live = MovingNeck(Stack(modules), upright, damping=0.01, max_rate=0.05)
+        live.command((0.09, 0.085, 0.12), 0.0)
+        for k in range(1, ticks + 1):
+            live.advance(k * 0.02)
+
+    def simulator():
+        sim = DynamicSimulator(modules, upright, [ModuleLimits(0.05, 0.15, 0.05)] * 3,
+                               damping=[0.01] * 3)
+        sim.command_rho(2, 0.12, 0)
+        for k in range(1, ticks + 1):
+            sim.advance(k * 20_000_000)
+            [sim.live(i) for i in range(3)]
+
+    wall_bare, wall_sim = best_of(bare, 2), best_of(simulator, 2)
+    simulated = ticks * 0.02
+    print(f'live neck (config/neck.yaml fold), {ticks} ticks of 20 ms: MovingNeck '
+          f'{wall_bare:.2f} s wall (real-time factor {simulated / wall_bare:.2f}), '
+          f'DynamicSimulator {wall_sim:.2f} s (real-time factor {simulated / wall_sim:.2f}), '
+          f'ratio {wall_sim / wall_bare:.2f}')
 
 
 if __name__ == '__main__':

@@ -66,9 +66,10 @@ NODE_PARAMETERS = (
      'non-empty', None, False),
     ('dynamics', False, BOOL,
      'false: quasi-static (the state jumps to the end of each tracked path). true: the rods '
-     'move with their inertia, integrated in real time at publish_rate (one module only; '
-     'needs <m>.m1, m2, damping, max_rho_rate > 0). Read-only: switching in the middle of a '
-     'transient has no verified state to start the other mode from.', 'one module',
+     'move with their inertia, integrated in real time at publish_rate (a module or a neck; '
+     'needs every <m>.m1, m2, damping, max_rho_rate > 0). Read-only: switching in the middle '
+     'of a transient has no verified state to start the other mode from.',
+     'every module with m1, m2, damping, max_rho_rate > 0',
      None, True),
 )
 _NODE_SPEC = {p[0]: p for p in NODE_PARAMETERS}
@@ -100,12 +101,10 @@ def check_node_values(values, modules=('m0',)):
     """Why the node-wide parameter values are refused, or '' if they are fine (with
     ``dynamics`` true: also the modules' dynamics values)."""
     if values['dynamics']:
-        if len(modules) != 1:
-            return (f'dynamics: true simulates one module, {len(modules)} modules given (the '
-                    f'live dynamics of a neck is not built yet)')
-        reason = check_dynamics_values(modules[0], module_getter(modules[0], values))
-        if reason:
-            return reason
+        for m in modules:
+            reason = check_dynamics_values(m, module_getter(m, values))
+            if reason:
+                return reason
     if not values['frame_id']:
         return 'frame_id must not be empty'
     rate = values['markers_rate']

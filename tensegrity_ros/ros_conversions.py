@@ -209,7 +209,7 @@ def jump_status(*, name, hardware_id, modules, jump):
                 pairs.append((f'{side}_{m}_theta1', float(theta[i][0])))
                 pairs.append((f'{side}_{m}_theta2', float(theta[i][1])))
     if jump.dynamics is not None:
-        pairs.extend(dynamic_figures(jump.dynamics))
+        pairs.extend(dynamic_figures(jump.dynamics, modules if neck else ()))
     status.values = key_values(pairs)
     return status
 
@@ -219,9 +219,11 @@ DYNAMIC_KEYS = ('onset_rho', 'onset_time', 'peak_speed', 'peak_actuator_force', 
                 'settle_time', 'lands_elsewhere')
 
 
-def dynamic_figures(figures):
+def dynamic_figures(figures, modules=()):
     """(key, value) pairs of a snap's figures: DYNAMIC_KEYS, ``final_theta1/2``,
-    ``final_speed`` and the quasi-static landing ``quasi_static_theta1/2``."""
+    ``final_speed`` and the quasi-static landing ``quasi_static_theta1/2``; for a neck
+    (``modules``: its names) also every module's ``onset_<m>_rho``, ``final_<m>_theta1/2``
+    and ``quasi_static_<m>_theta1/2``."""
     pairs = [(key, figures[key]) for key in DYNAMIC_KEYS]
     final = figures['final']
     pairs += [('final_theta1', final['theta1']), ('final_theta2', final['theta2']),
@@ -229,6 +231,14 @@ def dynamic_figures(figures):
     predicted = figures['quasi_static_final'] or {'theta1': None, 'theta2': None}
     pairs += [('quasi_static_theta1', predicted['theta1']),
               ('quasi_static_theta2', predicted['theta2'])]
+    if modules:
+        every = figures['modules']
+        onsets = every['onset_rho'] or [None] * len(modules)
+        pairs += [(f'onset_{m}_rho', rho) for m, rho in zip(modules, onsets)]
+        for side, thetas in (('final', every['final_theta']),
+                             ('quasi_static', every['quasi_static_theta'])):
+            for m, theta in zip(modules, thetas or [(None, None)] * len(modules)):
+                pairs += [(f'{side}_{m}_theta1', theta[0]), (f'{side}_{m}_theta2', theta[1])]
     return pairs
 
 

@@ -94,7 +94,7 @@ def test_the_quasi_static_default_has_no_velocities_and_no_dynamic_figures(harne
     ({'m0.m1': 0.0}, 'm0.m1 must be > 0'),
     ({'m0.damping': 0.0}, 'm0.damping must be > 0'),
     ({'m0.max_rho_rate': 0.0}, 'm0.max_rho_rate must be > 0'),
-    ({'modules': ['m0', 'm1']}, 'one module, 2 modules given'),
+    ({'modules': ['m0', 'm1']}, 'm1.m1 must be > 0'),     # a neck: every module's masses
 ])
 def test_a_dynamics_mode_it_cannot_run_is_refused_at_startup(ros, overrides, words):
     with pytest.raises(ConfigurationError, match=words):
@@ -115,3 +115,53 @@ def test_runtime_sets_that_would_stop_the_dynamics_are_refused(harness):
     # bad input at rest: dropped and counted, the state kept (as in the quasi-static mode)
     h.rejected('rejected_non_finite', lambda: h.rho_pub.publish(
         h.rho_pub.msg_type(data=math.nan)))
+
+
+def test_a_neck_snaps_through_a_fold_and_reports_the_figures_at_rest(harness):
+    """config/neck.yaml in the dynamics mode: m2's actuator is driven across the neck's
+    fold (rho 0.1127); the jump comes when the neck rests, with the figures of the core's
+    offline transient of the same profile, every module's on the way."""
+    from std_msgs.msg import Float64
+
+    from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
+    from test_moving_neck import ACROSS_THE_FOLD, BIRD, UPRIGHT
+    from test_node_neck import MODULES, Neck
+
+    extra = {'dynamics': True}
+    for m in MODULES:
+        extra.update({f'{m}.max_rho_rate': 0.05, f'{m}.damping': 0.01})
+    neck = Neck(harness, parameters=extra)
+    h = neck.h
+    assert len(h.joint_states[-1].velocity) == 9 and h.stable[-1].data
+    neck.rho_pubs['m2'].publish(Float64(data=ACROSS_THE_FOLD[2]))
+    h.spin_until(lambda: h.jumps, timeout=120, what='the jump once the neck rests')
+    jump = values(h.jumps[-1])
+    ref = simulate_neck_snap(BIRD, ACROSS_THE_FOLD, 0.05, 0.01, UPRIGHT).summary
+    assert (jump['kind'], jump['module']) == ('fold', 'm2')
+    assert float(jump['onset_rho']) == pytest.approx(ref['onset_rho'][2], rel=1e-6)
+    assert float(jump['onset_m2_rho']) == float(jump['onset_rho'])
+    for key in ('peak_speed', 'peak_actuator_force', 'overshoot'):
+        assert float(jump[key]) == pytest.approx(ref[key], rel=1e-5), key
+    for i, m in enumerate(MODULES):
+        for j in (0, 1):
+            assert float(jump[f'final_{m}_theta{j + 1}']) == pytest.approx(
+                ref['final']['theta'][i][j], abs=1e-6)
+    assert jump['lands_elsewhere'] == 'false'
+    # during the motion: the rods' rates and the actuator forces on joint_states (how many
+    # ticks fall inside the ~0.1 s snap depends on the machine's load: rates of any size)
+    fastest = max(max(abs(v) for v in msg.velocity[1::3] + msg.velocity[2::3])
+                  for msg in h.joint_states)
+    assert fastest > 0.01 and float(jump['peak_speed']) > 1.0
+    assert all(len(msg.effort) == 9 for msg in h.joint_states)
+    assert False in [msg.data for msg in h.stable]
+    h.spin_until(lambda: h.stable[-1].data, what='stable again at rest')
+    h.spin_until(lambda: not any(h.joint_states[-1].velocity), what='joint_states at rest')
+    positions, efforts = neck.joints()
+    assert positions['m2_rho'] == ACROSS_THE_FOLD[2]
+    # at rest the efforts are the verified state's static actuator forces
+    from tensegrity_ros.core.stack import Stack, settle_stack
+    rest = settle_stack(Stack(tuple(p.with_(rho=r) for p, r in zip(BIRD.modules,
+                                                                   ACROSS_THE_FOLD))),
+                        ref['final']['theta'])
+    assert [efforts[f'{m}_rho'] for m in MODULES] == pytest.approx(rest.actuator_forces,
+                                                                   rel=1e-6)

@@ -47,8 +47,10 @@ class NeckSnap:
     solution: OdeSolution = field(repr=False)
 
 
-class _Neck:
-    """Equations of motion of an N-module neck in node coordinates along a rho ramp."""
+class NeckEquations:
+    """Equations of motion of an N-module neck in node coordinates along a rho ramp.
+
+    ``damping`` is one pivot damping (N m s/rad) for every pivot, or one per module."""
 
     def __init__(self, start: Stack, ramp: RhoRamp, damping: float):
         self.n = n = len(start)
@@ -56,7 +58,9 @@ class _Neck:
             if m.m1 <= 0.0 or m.m2 <= 0.0:
                 raise InvalidParameterError(f'dynamics needs positive rod masses, got module '
                                             f'{i}: m1={m.m1!r}, m2={m.m2!r}')
-        self.ramp, self.damping = ramp, transient.checked_damping(damping)
+        self.ramp = ramp
+        self.damping = damping_vector(damping, n)
+        self.pivot_damping = np.repeat(self.damping, 2)      # one per local angle
         self.modules = start.modules
         a1 = [0] + [3 + 2 * i for i in range(n - 1)]
         a2 = [1] + [2 + 2 * i for i in range(n - 1)]
@@ -85,6 +89,14 @@ class _Neck:
         self.loads = loads.ravel()
         self.springs, self.rigid = springs, rigid
         self.chord_rows = [j for j, r in enumerate(rigid) if r[3] is not None]
+        # index arrays: the right-hand side runs on whole arrays, not per module
+        self._frame_nodes = tuple(np.array(a) for a in (a1, a2, a3, a4))
+        self._spring_ends = (np.array([a for a, _, _ in springs]),
+                             np.array([b for _, b, _ in springs]))
+        self._spring_k = np.array([k for _, _, k in springs], dtype=float)[:, None]
+        self._rigid_ends = (np.array([a for a, _, _, _ in rigid]),
+                            np.array([b for _, b, _, _ in rigid]))
+        self._jacobian_layout()
 
     # -- kinematics --------------------------------------------------------------------
     def full(self, t, y):
@@ -105,41 +117,59 @@ class _Neck:
         rate = np.array([0.0 if r[3] is None else rho_dot[r[3]] for r in self.rigid])
         return length, rate
 
+    def _jacobian_layout(self):
+        """Where each term of the angle Jacobian goes.  t1 of module i is
+        phi(A1A3) - phi(A1A2), t2 is pi + phi(A1A2) - phi(A2A4); d phi(d) / d head =
+        perp(d) / |d|^2 = -d phi / d tail.  Terms (4, N, 2): (row, sign, head, tail, d)
+        = (t1, +, A3, A1, A1A3), (t1, -, A2, A1, A1A2), (t2, +, A2, A1, A1A2),
+        (t2, -, A4, A2, A2A4); flat indices into the (2N, 2 nodes) matrix, heads then
+        tails, so that one bincount sums every contribution."""
+        a1, a2, a3, a4 = self._frame_nodes
+        first = 2 * np.arange(self.n)
+        rows = np.array([first, first, first + 1, first + 1])[:, :, None]
+        xy = np.arange(2)
+        heads = np.array([a3, a2, a2, a4])[:, :, None] * 2 + xy
+        tails = np.array([a1, a1, a1, a2])[:, :, None] * 2 + xy
+        width = 2 * self.nodes
+        self._jac_index = np.concatenate([(rows * width + heads).ravel(),
+                                          (rows * width + tails).ravel()])
+        sign = np.broadcast_to(np.array([1.0, -1.0, 1.0, -1.0])[:, None, None],
+                               (4, self.n, 2)).ravel()
+        self._jac_sign = np.concatenate([sign, -sign])
+
     def angle_jacobian(self, x):
         """Local angles (2N) and d(angles)/d(all coordinates), (2N, 2 nodes)."""
+        a1, a2, a3, a4 = self._frame_nodes
+        d = np.stack([x[a3] - x[a1], x[a2] - x[a1], x[a4] - x[a2]])     # A1A3, A1A2, A2A4
+        phi = np.arctan2(d[:, :, 1], d[:, :, 0])
         angles = np.empty(2 * self.n)
-        jac = np.zeros((2 * self.n, 2 * self.nodes))
-        for i, (a1, a2, a3, a4) in enumerate(self.frames):
-            e, v3, v4 = x[a2] - x[a1], x[a3] - x[a1], x[a4] - x[a2]
-            phi_e, phi_3, phi_4 = (math.atan2(d[1], d[0]) for d in (e, v3, v4))
-            angles[2 * i] = phi_3 - phi_e
-            angles[2 * i + 1] = math.pi + phi_e - phi_4
-            for row, sign, (head, tail), d in ((2 * i, 1, (a3, a1), v3), (2 * i, -1, (a2, a1), e),
-                                               (2 * i + 1, 1, (a2, a1), e),
-                                               (2 * i + 1, -1, (a4, a2), v4)):
-                g = sign * np.array([-d[1], d[0]]) / (d @ d)
-                jac[row, 2 * head:2 * head + 2] += g
-                jac[row, 2 * tail:2 * tail + 2] -= g
-        return wrap(angles), jac
+        angles[0::2] = phi[0] - phi[1]
+        angles[1::2] = math.pi + phi[1] - phi[2]
+        perp = np.stack([-d[:, :, 1], d[:, :, 0]], axis=-1) / np.einsum(
+            'kij,kij->ki', d, d)[:, :, None]
+        terms = perp[[0, 1, 1, 2]].ravel()
+        values = np.concatenate([terms, terms]) * self._jac_sign
+        jac = np.bincount(self._jac_index, values, minlength=4 * self.n * self.nodes)
+        return wrap(angles), jac.reshape(2 * self.n, 2 * self.nodes)
 
     def constraint_rows(self, x, v):
         """Phi_q over all coordinates (rigid, 2 nodes), and d, d' per element."""
+        a, b = self._rigid_ends
+        d, dv = x[a] - x[b], v[a] - v[b]
         rows = np.zeros((len(self.rigid), 2 * self.nodes))
-        d = np.array([x[a] - x[b] for a, b, _, _ in self.rigid])
-        dv = np.array([v[a] - v[b] for a, b, _, _ in self.rigid])
-        for j, (a, b, _, _) in enumerate(self.rigid):
-            rows[j, 2 * a:2 * a + 2] = 2.0 * d[j]
-            rows[j, 2 * b:2 * b + 2] = -2.0 * d[j]
+        element = np.arange(len(self.rigid))[:, None]
+        rows[element, 2 * a[:, None] + np.arange(2)] = 2.0 * d
+        rows[element, 2 * b[:, None] + np.arange(2)] = -2.0 * d
         return rows, d, dv
 
     def forces(self, x, v, jac):
         """Springs, loads, weights and pivot damping on all coordinates."""
         f = self.loads.copy().reshape(-1, 2)
-        for a, b, k in self.springs:
-            pull = k * (x[a] - x[b])
-            f[a] -= pull
-            f[b] += pull
-        return f.ravel() - self.damping * jac.T @ (jac @ v.ravel())
+        a, b = self._spring_ends
+        pull = self._spring_k * (x[a] - x[b])
+        np.add.at(f, a, -pull)
+        np.add.at(f, b, pull)
+        return f.ravel() - jac.T @ (self.pivot_damping * (jac @ v.ravel()))
 
     # -- the ODE -------------------------------------------------------------------------
     def _solve(self, t, y):
@@ -178,9 +208,11 @@ class _Neck:
         return np.concatenate([[reaction], 2.0 * lam[self.chord_rows] * length[self.chord_rows]])
 
     def onset_events(self):
-        def event(k):
-            return lambda t, y: self.rates(t, y)[1][k] ** 2 - ONSET_SPEED ** 2
-        return [event(k) for k in range(2 * self.n)]
+        """One event: the fastest local angle rate crosses ONSET_SPEED (one evaluation of
+        the rates per check, not one per angle)."""
+        def fastest(t, y):
+            return float(np.max(self.rates(t, y)[1] ** 2)) - ONSET_SPEED ** 2
+        return [fastest]
 
     # -- start and rest ------------------------------------------------------------------
     def start_state(self, nodes):
@@ -221,10 +253,27 @@ class _Neck:
             u += 0.5 * k * (d @ d)
         return u
 
+    def _lagrangian_at(self, nodes, rho):
+        """U - lambda . (|d|^2 - l^2) with the multipliers of the equilibrium ``nodes``:
+        stationary there in every direction, so that a drift of the rigid lengths (the
+        Baumgarte-stabilised constraints hold to ~1e-10 m only) changes it to second
+        order, not by the chord forces times the drift."""
+        rows, _, _ = self.constraint_rows(nodes, np.zeros_like(nodes))
+        gradient = -self.forces(nodes, np.zeros_like(nodes), np.zeros((2 * self.n, 2 * self.nodes)))
+        lam = np.linalg.lstsq(rows[:, 4:].T, gradient[4:], rcond=None)[0]
+        length = np.asarray(self.lengths(rho, np.zeros_like(rho))[0], dtype=np.longdouble)
+
+        def lagrangian(x):
+            x = np.asarray(x, dtype=np.longdouble)
+            d = np.array([x[a] - x[b] for a, b, _, _ in self.rigid])
+            return self.potential(x) - np.sum(lam.astype(np.longdouble) * (
+                np.sum(d * d, axis=1) - length ** 2))
+        return lagrangian
+
     def settled(self, y):
         """Rest angles if the damped energy above the nearby minimum is below the least
         energy of any state outside the tolerance box (linearised), else None."""
-        if self.damping == 0.0:
+        if not np.any(self.damping > 0.0):
             return None
         t_end = self.ramp.duration
         angles, rates = self.rates(t_end, y)
@@ -235,13 +284,22 @@ class _Neck:
             eq = settle_stack(end, angles.reshape(self.n, 2))
         except (RuntimeError, ValueError):
             return None
-        x, v, _, _ = self.full(t_end, y)
+        x, v, rho, _ = self.full(t_end, y)
         kinetic = 0.5 * v.ravel()[4:] @ self.mass @ v.ravel()[4:]
-        excess = float(self.potential(x) - self.potential(eq.nodes)) + kinetic
+        lagrangian = self._lagrangian_at(eq.nodes, rho)
+        excess = float(lagrangian(x) - lagrangian(eq.nodes)) + kinetic
         stiffness = min(float(eq.eigenvalues[0]), float(np.linalg.eigvalsh(self.mass)[0]))
         shortest = min(min(m.L1, m.L2) for m in self.modules)
         floor = 0.5 * stiffness * (0.5 * SETTLE_TOLERANCE * shortest) ** 2
         return eq.theta.ravel() if excess < 0.5 * floor else None
+
+
+def damping_vector(damping, n):
+    """Pivot damping per module (N values) from one value or N."""
+    values = np.atleast_1d(np.asarray(damping, dtype=object))
+    if values.shape not in ((1,), (n,)):
+        raise InvalidParameterError(f'damping must have 1 or {n} values, got {damping!r}')
+    return np.broadcast_to([transient.checked_damping(d) for d in values], (n,)).copy()
 
 
 def _rho_vector(values, n, name):
@@ -264,7 +322,7 @@ def simulate_neck_snap(stack: Stack, rho_end, rate: float, damping: float, theta
     rho1 = _rho_vector(rho_end, len(stack), 'rho_end')
     end = Stack(tuple(m.with_(rho=float(r)) for m, r in zip(stack.modules, rho1)))
     ramp = RhoRamp(tuple(m.rho for m in stack.modules), tuple(rho1), float(rate))
-    system = _Neck(stack, ramp, damping)
+    system = NeckEquations(stack, ramp, damping)
     start = settle_stack(stack, theta_guess)
     solution, events, rest = transient.run(system, system.start_state(start.nodes), hold,
                                            settings)

@@ -63,6 +63,10 @@ class RhoRamp:
 
     def rho(self, t):
         """rho at time(s) t: shape t.shape + rho0.shape."""
+        if isinstance(t, float):        # one time, as the right-hand side asks: no arrays
+            duration = self.duration
+            s = 1.0 if duration == 0.0 else min(max(t / duration, 0.0), 1.0)
+            return np.asarray(self.rho0, dtype=float) + s * np.subtract(self.rho1, self.rho0)
         t = np.asarray(t, dtype=float)
         duration = self.duration
         s = np.ones_like(t) if duration == 0.0 else np.clip(t / duration, 0.0, 1.0)

@@ -144,7 +144,7 @@ def test_stability_is_the_same_in_either_coordinates(seed, n):
 def test_the_fast_path_takes_a_command_exactly_when_the_tracker_takes_it_in_one_step(n):
     """The one-step fast path applies the tracker's acceptance rules: it answers exactly
     the commands the generic tracker covers in one step, with the tracker's state."""
-    from tensegrity_ros.core.stack import _whole_command_step
+    from tensegrity_ros.core.stack_fast_step import whole_command_step
     rng = np.random.default_rng(200 + n)
     taken = declined = 0
     for size in (1e-4, 1e-3, 1e-2, 3e-2, 1e-1):
@@ -153,7 +153,7 @@ def test_the_fast_path_takes_a_command_exactly_when_the_tracker_takes_it_in_one_
         i = int(rng.integers(n))
         end = stack.with_module(i, rho=stack.modules[i].rho + size * rng.choice((-1.0, 1.0)))
         path = StackPath(stack, end)
-        fast = _whole_command_step(path, state.state, continuation.TrackerSettings(), state)
+        fast = whole_command_step(path, state.state, continuation.TrackerSettings(), state)
         full = continuation.track(StackPath(stack, end), state.state)
         one_step = full.status == 'ok' and full.steps == 1 and not full.events
         assert (fast is not None) == one_step, (n, size, full.steps)

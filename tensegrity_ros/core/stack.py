@@ -33,13 +33,13 @@ import operator
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg.lapack import (dgeqrf as _dgeqrf, dgesv as _dgesv, dgetrf as _dgetrf,
-                                 dgetrs as _dgetrs, dorgqr as _dorgqr, dsygv as _dsygv)
+from scipy.linalg.lapack import dgeqrf as _dgeqrf, dorgqr as _dorgqr, dsygv as _dsygv
 from scipy.optimize import root
 
 from . import continuation as _continuation
 from .continuation import TrackerSettings
 from .module import ModuleParams, PARAMETER_NAMES, InvalidParameterError
+from .stack_fast_step import keep_final_point, whole_command_step
 
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
 _PARAMETERS_OF = operator.attrgetter(*PARAMETER_NAMES)     # a module's parameters, in order
@@ -205,14 +205,6 @@ def _null_basis(jc):
     qr, tau, _, _ = _dgeqrf(padded, overwrite_a=True)
     q, _, _ = _dorgqr(qr, tau, overwrite_a=True)
     return q[:, m:]
-
-
-def _solve(matrix, rhs):
-    """matrix^-1 rhs by LAPACK's dgesv (raises LinAlgError when singular)."""
-    _, _, x, info = _dgesv(matrix, rhs)
-    if info != 0:
-        raise np.linalg.LinAlgError(f'singular matrix (dgesv info={info})')
-    return x
 
 
 class _Values:
@@ -433,12 +425,23 @@ class StackPath:
         return x.view(float).reshape(-1, 2)           # (x, y) pairs: complex memory layout
 
     # -- PathProblem ---------------------------------------------------------------
+    def evaluate(self, y, s):
+        """A fresh :class:`_Point` at (y, s) (an ndarray), without a cache lookup: for a
+        caller that holds its points (the small-command step) and calls the ``*_at``
+        methods.  It becomes the cached point, so a record of y after it reuses it."""
+        p = self._point = _Point(self, y, (s, y.tobytes()), self.at(s))
+        return p
+
     def residual(self, y, s):
-        p = self.point(y, s)
+        return self.residual_at(self.point(y, s))
+
+    def residual_at(self, p):
         return np.concatenate([p.gradient() / self.l_ref, p.constraints(self)])
 
     def jacobian(self, y, s):
-        p = self.point(y, s)
+        return self.jacobian_at(self.point(y, s))
+
+    def jacobian_at(self, p):
         n = self.topology.n_rods
         jc = p.constraint_jacobian(self)
         out = np.zeros((self.size, self.size))
@@ -457,7 +460,9 @@ class StackPath:
 
     def residual_s(self, y, s):
         """dF/ds at fixed state (analytic: parameters move linearly along the path)."""
-        p = self.point(y, s)
+        return self.residual_s_at(self.point(y, s))
+
+    def residual_s_at(self, p):
         top, rate = self.topology, self._rate_values
         d_rods, d_diff = self._rates(p)
         d_force = (top.element_rods_tc @ (rate.weights * p.diff + p.weights * d_diff)
@@ -469,7 +474,9 @@ class StackPath:
 
     def energy(self, y, s):
         """The Lagrangian U + mu . c (equal to U on the constraint manifold)."""
-        p = self.point(y, s)
+        return self.energy_at(self.point(y, s))
+
+    def energy_at(self, p):
         v, ns = p.values, self.topology.n_springs
         springs = 0.5 * float(v.k @ p.squares[:ns])
         work = float((v.rod_loads.conj() @ p.rods).real) + v.base_load * v.rho0
@@ -481,7 +488,9 @@ class StackPath:
 
     def energy_s(self, y, s):
         """dL/ds at fixed state (the envelope theorem's side of the tracker's energy check)."""
-        p = self.point(y, s)
+        return self.energy_s_at(self.point(y, s))
+
+    def energy_s_at(self, p):
         v, rate, ns = p.values, self._rate_values, self.topology.n_springs
         d_rods, d_diff = self._rates(p)
         springs = (0.5 * float(rate.k @ p.squares[:ns])
@@ -492,7 +501,9 @@ class StackPath:
 
     def _reduced(self, y, s):
         """(reduced Hessian, reduced metric, null basis Z, point) on the tangent space."""
-        p = self.point(y, s)
+        return self._reduced_at(self.point(y, s))
+
+    def _reduced_at(self, p):
         if not self.topology.n_chords:
             return p.hessian(self), p.metric(self), self.topology.identity, p
         z = _null_basis(p.constraint_jacobian(self))
@@ -500,7 +511,10 @@ class StackPath:
         return zt @ p.hessian(self) @ z, zt @ p.metric(self) @ z, z, p
 
     def eigenvalues(self, y, s):
-        a, b, _, _ = self._reduced(y, s)
+        return self.eigenvalues_at(self.point(y, s))
+
+    def eigenvalues_at(self, p):
+        a, b, _, _ = self._reduced_at(p)
         values, _, info = _dsygv(a, b, jobz='N')
         if info != 0:
             raise np.linalg.LinAlgError(f'reduced eigenproblem failed (dsygv info={info})')
@@ -724,87 +738,6 @@ class StackTrack:
     steps: int = 0
 
 
-def _inf_norm(v):
-    """max |v_i| (0 for an empty vector); in Python, cheaper than numpy for a few entries
-    (it may miss a NaN: every step that matters ends with a numpy residual test)."""
-    return max(map(abs, v.tolist()), default=0.0)
-
-
-def _newton(path, y, s, tol, iterations):
-    """The tracker's corrector (Newton while it contracts, to rounding level; ``None``
-    unless the residual ends within ``tol``), with the Jacobian of the first iterate
-    kept (LU factors reused): on a small step the iterates move by ~1e-6, so the
-    contraction stays fast.  An update at rounding level is not applied (the point
-    is converged; its residual is already known), so the answer is the tracker's to
-    rounding with one evaluation less."""
-    previous = math.inf
-    f = path.residual(y, s)
-    lu, pivots, info = _dgetrf(path.jacobian(y, s))
-    if info != 0:
-        return None
-    for _ in range(iterations):
-        delta, _ = _dgetrs(lu, pivots, f)
-        size = _inf_norm(delta)
-        if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
-            break
-        if size <= 1e-14 * (1.0 + _inf_norm(y)):
-            break
-        y = y - delta
-        f = path.residual(y, s)
-        previous = size
-    residual = float(np.abs(f).max())          # numpy: a NaN anywhere fails the test
-    return (y, residual) if residual <= tol else (None, residual)
-
-
-def _whole_command_step(path, y, settings, known=None):
-    """The tracker's first step when it spans the whole command: (state, eigenvalues,
-    energy, residual) at s = 1, or ``None`` wherever the tracker would do anything else.
-
-    A small command is one continuation step, accepted by the tracker's own rules
-    (:mod:`.continuation`: :func:`~.continuation.positive_definite`,
-    :func:`~.continuation.step_bound`, :func:`~.continuation.near_prediction`,
-    :func:`~.continuation.energy_consistent`): a stable equilibrium at s = 0, a whole
-    step within the step bound, Newton contracting to a point near the prediction, the
-    energy change matching the envelope theorem, a positive definite reduced Hessian at
-    s = 1.  Anything else (a longer command, a soft mode, an event) returns ``None`` and
-    the tracker runs in full.  What is skipped is the tracker's generality only (no step
-    loop, no second Newton at s = 0, no re-evaluation of what is already known:
-    ``known`` is the :class:`StackEquilibrium` of ``y`` when it was verified at the start
-    parameters, whose eigenvalues, residual and energy are those at s = 0)."""
-    cfg = settings
-    eigenvalues = path.eigenvalues(y, 0.0) if known is None else known.eigenvalues
-    scale = max(abs(eigenvalues[-1]), 1e-300)
-    tol = cfg.residual_tol * scale
-    weights = path.state_weights
-    residual0 = _inf_norm(path.residual(y, 0.0)) if known is None else known.residual
-    if not _continuation.positive_definite(eigenvalues, scale, cfg) or residual0 > tol:
-        return None
-    try:
-        tangent = -_solve(path.jacobian(y, 0.0), path.residual_s(y, 0.0))
-    except np.linalg.LinAlgError:
-        return None
-    reach = _inf_norm(weights * tangent)
-    if not reach <= cfg.max_state_step:       # cheap early out: step_bound below says the same
-        return None
-    energy0 = path.energy(y, 0.0) if known is None else known.energy
-    energy_s0 = path.energy_s(y, 0.0)          # (before the point at y0 is left)
-    rate = _continuation.forward_rate(path.eigenvalues, y, 0.0, tangent, eigenvalues[0])
-    if not _continuation.step_bound(reach, eigenvalues[0], rate, cfg) >= 1.0:
-        return None
-    predicted = y + tangent
-    y1, residual = _newton(path, predicted, 1.0, tol, cfg.newton_iterations)
-    if y1 is None or not _continuation.near_prediction(_inf_norm(weights * (y1 - predicted)),
-                                                       reach, 1.0, cfg):
-        return None
-    energy1, energy_s1 = path.energy_and_rate(y1, 1.0)
-    if not _continuation.energy_consistent(energy0, energy1, energy_s0, energy_s1, 1.0, scale):
-        return None
-    eigenvalues1 = path.eigenvalues(y1, 1.0)
-    if not _continuation.positive_definite(eigenvalues1, scale, cfg):
-        return None
-    return y1, eigenvalues1, energy1, residual
-
-
 def _checked_angles(theta, n):
     theta = np.asarray(theta, dtype=float)
     if theta.shape not in ((n, 2), (2 * n,)):
@@ -837,10 +770,11 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
             _checked_angles(arr, len(start)), 0.0)
     known = (state_or_theta if isinstance(state_or_theta, StackEquilibrium)
              and state_or_theta.parameters == path.p0.tobytes() else None)
-    quick = _whole_command_step(path, y0, settings, known)
+    quick = whole_command_step(path, y0, settings, known)
     if quick is not None:
-        return StackTrack(final=_record(path, quick[0], 1.0, *quick[1:]), end=end, jumps=(),
-                          steps=1)
+        final = _record(path, quick[0], 1.0, *quick[1:4])
+        keep_final_point(final, path, quick[4])
+        return StackTrack(final=final, end=end, jumps=(), steps=1)
     try:
         result = _continuation.track(path, y0, settings)
     except _continuation.TrackingError:

@@ -1,0 +1,129 @@
+"""A small stack command as one continuation step, with few evaluations (issue 14).
+
+A node sends actuator targets at 1 kHz: each is a small move that the generic
+tracker (:mod:`.continuation`) covers in one step.  :func:`whole_command_step`
+takes that step with the tracker's own acceptance rules and nothing else:
+
+* the start state's evaluation (rods, forces, Hessian, constraint Jacobian) is the
+  previous command's final one, kept on its record (:func:`keep_final_point`), so
+  only what depends on the new command (dF/ds, dE/ds) is computed at s = 0;
+* every evaluation is a point held here (``path.evaluate``), never looked up again;
+* Newton factors the Jacobian once (at the prediction) and stops when the update
+  is at rounding level.
+
+Anything the tracker would do differently (a soft mode, a long command, an event)
+returns ``None`` and the caller runs the tracker in full.  The path object is the
+stack's ``StackPath`` (duck-typed here, so that this module sits below it).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.linalg.lapack import dgesv as _dgesv, dgetrf as _dgetrf, dgetrs as _dgetrs
+
+from . import continuation as _continuation
+
+#: The attribute of a stack record that keeps its final evaluation (not a field).
+_KEPT = '_final_point'
+
+
+def _inf_norm(v):
+    """max |v_i| (0 for an empty vector); in Python, cheaper than numpy for a few entries
+    (it may miss a NaN: every step that matters ends with a numpy residual test)."""
+    return max(map(abs, v.tolist()), default=0.0)
+
+
+def keep_final_point(record, path, point):
+    """Keep ``point`` (the evaluation at ``record.state`` and the path's end) on the
+    record, so that the next command, which starts there, does not evaluate it again."""
+    record.__dict__[_KEPT] = (path.l_ref, path.f_ref, point)
+
+
+def _start_point(path, y, known):
+    """The evaluation at (y, 0): the one kept on ``known`` when it was made at the same
+    state and scales (its s-rates belong to another path and are dropped), else fresh."""
+    kept = None if known is None else known.__dict__.get(_KEPT)
+    if kept is not None and kept[0] == path.l_ref and kept[1] == path.f_ref:
+        point = kept[2]
+        if point.values is path.at(0.0) and np.array_equal(known.state, y):
+            point.rates = None
+            return point
+    return path.evaluate(y, 0.0)
+
+
+def _newton(path, y, tol, iterations):
+    """The tracker's corrector at s = 1 (Newton while it contracts, to rounding level):
+    (state, point, residual), state ``None`` unless the residual ends within ``tol``.
+
+    The Jacobian of the first iterate is kept (LU factors reused): on a small step the
+    iterates move by ~1e-6, so the contraction stays fast.  An update at rounding level
+    is not applied (the point is converged; its residual is already known)."""
+    previous = math.inf
+    point = path.evaluate(y, 1.0)
+    f = path.residual_at(point)
+    lu, pivots, info = _dgetrf(path.jacobian_at(point))
+    if info != 0:
+        return None, point, math.inf
+    for _ in range(iterations):
+        delta, _ = _dgetrs(lu, pivots, f)
+        size = _inf_norm(delta)
+        if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
+            break
+        if size <= 1e-14 * (1.0 + _inf_norm(y)):
+            break
+        y = y - delta
+        point = path.evaluate(y, 1.0)
+        f = path.residual_at(point)
+        previous = size
+    residual = float(np.abs(f).max())          # numpy: a NaN anywhere fails the test
+    return (y if residual <= tol else None), point, residual
+
+
+def whole_command_step(path, y, settings, known=None):
+    """The tracker's first step when it spans the whole command: (state, eigenvalues,
+    energy, residual, point) at s = 1, or ``None`` wherever the tracker would do
+    anything else.
+
+    A small command is one continuation step, accepted by the tracker's own rules
+    (:func:`~.continuation.positive_definite`, :func:`~.continuation.step_bound`,
+    :func:`~.continuation.near_prediction`, :func:`~.continuation.energy_consistent`):
+    a stable equilibrium at s = 0, a whole step within the step bound, Newton
+    contracting to a point near the prediction, the energy change matching the
+    envelope theorem, a positive definite reduced Hessian at s = 1.  ``known`` is the
+    record of ``y`` when it was verified at the start parameters: its eigenvalues,
+    residual and energy are those at s = 0."""
+    cfg = settings
+    start = _start_point(path, y, known)
+    eigenvalues = path.eigenvalues_at(start) if known is None else known.eigenvalues
+    scale = max(abs(eigenvalues[-1]), 1e-300)
+    tol = cfg.residual_tol * scale
+    weights = path.state_weights
+    residual0 = _inf_norm(path.residual_at(start)) if known is None else known.residual
+    if not _continuation.positive_definite(eigenvalues, scale, cfg) or residual0 > tol:
+        return None
+    _, _, tangent, info = _dgesv(path.jacobian_at(start), path.residual_s_at(start))
+    if info != 0:
+        return None
+    tangent = -tangent
+    reach = _inf_norm(weights * tangent)
+    if not reach <= cfg.max_state_step:       # cheap early out: step_bound below says the same
+        return None
+    energy0 = path.energy_at(start) if known is None else known.energy
+    energy_s0 = path.energy_s_at(start)
+    rate = _continuation.forward_rate(
+        lambda y, s: path.eigenvalues_at(path.evaluate(y, s)), y, 0.0, tangent, eigenvalues[0])
+    if not _continuation.step_bound(reach, eigenvalues[0], rate, cfg) >= 1.0:
+        return None
+    predicted = y + tangent
+    y1, end, residual = _newton(path, predicted, tol, cfg.newton_iterations)
+    if y1 is None or not _continuation.near_prediction(_inf_norm(weights * (y1 - predicted)),
+                                                       reach, 1.0, cfg):
+        return None
+    energy1, energy_s1 = path.energy_at(end), path.energy_s_at(end)
+    if not _continuation.energy_consistent(energy0, energy1, energy_s0, energy_s1, 1.0, scale):
+        return None
+    eigenvalues1 = path.eigenvalues_at(end)
+    if not _continuation.positive_definite(eigenvalues1, scale, cfg):
+        return None
+    return y1, eigenvalues1, energy1, residual, end

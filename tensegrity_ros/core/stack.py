@@ -48,6 +48,7 @@ _FIXED = 2          # A1(0) and A2(0) are the first two entries of the node tabl
 # is damped by up to _DAMPING once its smallest eigenvalue falls below _DAMPING_ONSET.
 _DAMPING = 1e-3
 _DAMPING_ONSET = 1e-2
+_FRAME_SIGNS, _ANGLE_SIGNS = np.array([1.0, -1.0]), np.array([-1.0, 1.0])  # StackPath.angles_at
 
 
 def _solve_guarded(matrix, rhs):
@@ -159,6 +160,9 @@ class _Topology:
         self.n_springs = len(springs)
         self.mobility = rods[_FIXED:].T @ rods[_FIXED:]   # moving nodes shared by two rods
         self.identity = np.eye(self.n_rods)
+        # K = E^T diag(w) E as one product: (w @ element_outer).reshape(2N, 2N)
+        self.element_outer = np.einsum('er,eq->erq', self.element_rods,
+                                       self.element_rods).reshape(len(ends), -1)
         self.angle_mask = np.concatenate([np.ones(self.n_rods), np.zeros(self.n_chords)])
         # loads: complex node forces = (forces + g * weights) @ parameters
         forces = np.zeros((self.nodes, n * len(PARAMETER_NAMES)), dtype=complex)
@@ -173,11 +177,34 @@ class _Topology:
             for node in (a2(i), a4(i)):
                 weights[node, index(i, 'm2')] -= 0.5
         self.load_forces, self.load_weights = forces, 1j * weights
-        self._load_maps = {}
+        self._load_maps, self._value_maps = {}, {}
+        sizes = (('rod_loads', 2 * self.n_rods), ('k', len(springs)), ('chord', self.n_chords),
+                 ('rod', self.n_rods), ('shift', len(ends)), ('weights', len(ends)),
+                 ('base_load', None), ('rho0', None))
+        self.value_layout, start = {}, 0
+        for name, size in sizes:
+            self.value_layout[name] = start if size is None else slice(start, start + size)
+            start += 1 if size is None else size
 
     def load_map(self, g):
         """Complex node forces per parameter (nodes x 12N) under gravity g."""
         return self.load_forces + g * self.load_weights
+
+    def value_map(self, g):
+        """The linear map from a parameter vector (12N) to packed path values (see
+        ``value_layout``; rod loads as interleaved x, y), under gravity g."""
+        found = self._value_maps.get(g)
+        if found is None:
+            rod_loads, base_load = self.load_maps(g)
+            eye = np.eye(self.n * len(PARAMETER_NAMES))
+            springs = eye[self.spring_index]
+            rows = [np.stack([rod_loads.real, rod_loads.imag], axis=1).reshape(-1, len(eye)),
+                    springs, eye[self.chord_index], eye[self.rod_index],
+                    self.element_base[:, None] * eye[self.rho0_index],
+                    np.concatenate([springs, np.zeros((self.n_chords, len(eye)))]),
+                    base_load[None, :], eye[[self.rho0_index]]]
+            found = self._value_maps[g] = np.concatenate(rows)
+        return found
 
     def load_maps(self, g):
         """Per parameter under gravity g: the loads carried by every rod vector (2N x 12N,
@@ -209,28 +236,31 @@ def _null_basis(jc):
 
 class _Values:
     """The path's parameters at one s, or their rates along s (all linear in the
-    parameter vector, so the values at s are those at 0 plus s times the rates)."""
+    parameter vector, so the values at s are those at 0 plus s times the rates).
 
-    _FIELDS = ('k', 'chord', 'chord_squares', 'rod', 'rod_loads', 'base_load', 'rho0', 'shift',
-               'weights')
-    __slots__ = ('s', '_scales') + _FIELDS
+    All are views of one packed array ``data`` = (the topology's value map) @ p, so
+    that the values at s, or the rates, are one array operation."""
+
+    __slots__ = ('_scales', 'data', 'k', 'chord', 'chord_squares', 'rod', 'rod_loads',
+                 'base_load', 'rho0', 'shift', 'weights')
 
     @classmethod
-    def of(cls, top, g, p, s):
-        """The values of parameter vector ``p`` (N x 12, flattened)."""
+    def _of_data(cls, top, data, rates=False):
         self = cls()
-        self.s = s
-        self.k = p[top.spring_index]
-        self.chord = p[top.chord_index]
-        self.chord_squares = self.chord ** 2
-        self.rod = p[top.rod_index]
-        self.rho0 = float(p[top.rho0_index])
-        rod_loads, base_load = top.load_maps(g)
-        self.rod_loads = rod_loads @ p                      # d(load work)/d(rod vector)
-        self.base_load = float(base_load @ p)               # x force carried by A2(0)
-        self.shift = top.element_base * self.rho0
-        self.weights = np.concatenate([self.k, np.zeros(top.n_chords)])
+        self.data = data
+        layout = top.value_layout
+        self.rod_loads = data[layout['rod_loads']].view(complex)   # d(load work)/d(rod vector)
+        self.k, self.chord, self.rod = data[layout['k']], data[layout['chord']], data[layout['rod']]
+        self.shift, self.weights = data[layout['shift']], data[layout['weights']]
+        self.base_load = float(data[layout['base_load']])          # x force carried by A2(0)
+        self.rho0 = float(data[layout['rho0']])
+        self.chord_squares = None if rates else self.chord ** 2
         return self
+
+    @classmethod
+    def of(cls, top, g, p):
+        """The values of parameter vector ``p`` (N x 12, flattened)."""
+        return cls._of_data(top, top.value_map(g) @ p)
 
     @classmethod
     def of_stack(cls, stack, top):
@@ -238,7 +268,7 @@ class _Values:
         found = stack.__dict__.get('_path_values')     # frozen dataclass: not a field
         if found is None:
             found = stack.__dict__['_path_values'] = cls.of(top, stack.modules[0].g,
-                                                            stack._vector, None)
+                                                            stack._vector)
         return found
 
     def scales(self, top):
@@ -258,57 +288,60 @@ class _Values:
             return self._scales
 
     @classmethod
-    def difference(cls, one, zero):
-        """one - zero: the rates along s of a straight path."""
-        self = cls()
-        self.s = None
-        for name in cls._FIELDS:
-            setattr(self, name, getattr(one, name) - getattr(zero, name))
-        return self
+    def difference(cls, top, one, zero):
+        """one - zero: the rates along s of a straight path (no chord_squares)."""
+        return cls._of_data(top, one.data - zero.data, rates=True)
 
     @classmethod
-    def along(cls, zero, rate, s):
+    def along(cls, top, zero, rate, s):
         """zero + s * rate."""
-        self = cls()
-        self.s = s
-        self.k = zero.k + s * rate.k
-        self.chord = zero.chord + s * rate.chord
-        self.chord_squares = self.chord ** 2
-        self.rod = zero.rod + s * rate.rod
-        self.rod_loads = zero.rod_loads + s * rate.rod_loads
-        self.base_load = zero.base_load + s * rate.base_load
-        self.rho0 = zero.rho0 + s * rate.rho0
-        self.shift = zero.shift + s * rate.shift
-        self.weights = zero.weights + s * rate.weights
-        return self
+        return cls._of_data(top, zero.data + s * rate.data)
 
 
 class _Point:
     """Everything the path needs at one (state, s), computed once: rod vectors ``rods``
     (2N complex), element differences ``diff`` (elements, complex), the element
-    weights (stiffnesses, then chord multipliers / l_ref) and the generalized force
-    ``force`` = dL/d(rod vector) (2N complex, x + iy)."""
+    weights (stiffnesses, then chord multipliers / l_ref), the generalized force
+    ``force`` = dL/d(rod vector) (2N complex, x + iy) and its moment about each rod's
+    base ``moment`` = conj(rod) force (imaginary part: dL/dphi; real part: the
+    Hessian's diagonal term).  What only some callers need is made on first use."""
 
-    __slots__ = ('key', 'values', 'mu', 'rods', 'diff', 'squares', 'force', 'weights',
-                 '_hessian', '_jc', '_gram', 'rates')
+    __slots__ = ('key', 'values', 'rods', 'diff', 'force', 'moment', 'weights', '_multipliers',
+                 '_f_ref', '_squares', '_hessian', '_jc', '_gram', 'rates')
 
     def __init__(self, path, y, key, values):
         top = path.topology
         n = top.n_rods
         self.key, self.values = key, values
-        self.mu = y[n:] * path.f_ref
-        self.rods = values.rod * np.exp(1j * y[:n])
-        diff = self.diff = top.element_rods_c @ self.rods + values.shift
-        squares = self.squares = np.abs(diff)
-        squares *= squares
-        weights = self.weights = values.weights.copy()
-        weights[top.n_springs:] = y[n:] * path.f_ref_per_l_ref
-        self.force = top.element_rods_tc @ (weights * diff) - values.rod_loads
-        self._hessian = self._jc = self._gram = self.rates = None
+        rods = self.rods = values.rod * np.exp(1j * y[:n])
+        diff = self.diff = top.element_rods_c @ rods
+        diff += values.shift
+        weights = self.weights = values.weights
+        multipliers = self._multipliers = y[n:]
+        self._f_ref = path.f_ref
+        if top.n_chords:
+            weights = self.weights = np.concatenate((values.k, multipliers * path.f_ref_per_l_ref))
+        force = self.force = top.element_rods_tc @ (weights * diff)
+        force -= values.rod_loads
+        self.moment = rods.conj() * force
+        self._squares = self._hessian = self._jc = self._gram = self.rates = None
 
     def gradient(self):
         """dL/dphi (2N,): the torque of the generalized force about every rod's base."""
-        return (self.rods.conj() * self.force).imag
+        return self.moment.imag
+
+    @property
+    def mu(self):
+        """The chord multipliers (N - 1,), N: the chords' compression forces."""
+        return self._multipliers * self._f_ref
+
+    @property
+    def squares(self):
+        """|element difference|^2 (elements,)."""
+        if self._squares is None:
+            diff = self.diff
+            self._squares = (diff.conj() * diff).real
+        return self._squares
 
     @property
     def gram(self):
@@ -319,11 +352,12 @@ class _Point:
         return self._gram
 
     def hessian(self, path):
-        """d2L/dphi2 (2N x 2N)."""
+        """d2L/dphi2 (2N x 2N): (E^T W E)_rq v_r . v_q, less the moments on the diagonal."""
         if self._hessian is None:
-            e = path.topology.element_rods
-            h = (path.topology.element_rods_t @ (self.weights[:, None] * e)) * self.gram
-            h.flat[::len(h) + 1] -= (self.rods.conj() * self.force).real
+            top = path.topology
+            h = (self.weights @ top.element_outer).reshape(top.n_rods, top.n_rods)
+            h *= self.gram
+            h.flat[::top.n_rods + 1] -= self.moment.real
             self._hessian = h
         return self._hessian
 
@@ -337,8 +371,7 @@ class _Point:
         """d c / d phi ((N - 1) x 2N): chord . (i v_r) / l_ref where rod r builds the chord."""
         if self._jc is None:
             chords = self.chords(path)
-            self._jc = path.topology.chord_rods * (
-                (chords.conj()[:, None] * self.rods).imag * -path.inv_l_ref)
+            self._jc = (chords.conj()[:, None] * self.rods).imag * path.chord_rods_scaled
         return self._jc
 
     def metric(self, path):
@@ -375,8 +408,12 @@ class StackPath:
         self.half_inv_l_ref = 0.5 / self.l_ref
         self.f_ref_per_l_ref = self.f_ref / self.l_ref
         self.inv_l_ref = 1.0 / self.l_ref
+        self.chord_rods_scaled = top.chord_rods * -self.inv_l_ref
         self._zero_values = zero
-        self._rate_values = _Values.difference(one, zero)
+        rate = self._rate_values = _Values.difference(top, one, zero)
+        # which parameter groups move along the path (a still group adds nothing to d/ds)
+        self._moving = {'rod': rate.rod.any(), 'k': rate.k.any(),
+                        'rod_loads': rate.rod_loads.any()}
         self._values = {0.0: zero, 1.0: one}
         self._point = None
 
@@ -387,7 +424,8 @@ class StackPath:
         if values is None:
             if len(self._values) > 3:
                 self._values.clear()
-            values = self._values[s] = _Values.along(self._zero_values, self._rate_values, s)
+            values = self._values[s] = _Values.along(self.topology, self._zero_values,
+                                                     self._rate_values, s)
         return values
 
     def parameter_vector(self, s):
@@ -420,8 +458,12 @@ class StackPath:
 
     def nodes(self, y, s):
         """All node positions (nodes x 2) including the fixed A1(0), A2(0)."""
+        return self.nodes_at(self.point(y, s))
+
+    def nodes_at(self, p):
         top = self.topology
-        x = top.node_rods_c @ self.point(y, s).rods + top.node_base * self.at(s).rho0
+        x = top.node_rods_c @ p.rods
+        x += top.node_base * p.values.rho0
         return x.view(float).reshape(-1, 2)           # (x, y) pairs: complex memory layout
 
     # -- PathProblem ---------------------------------------------------------------
@@ -436,26 +478,36 @@ class StackPath:
         return self.residual_at(self.point(y, s))
 
     def residual_at(self, p):
-        return np.concatenate([p.gradient() / self.l_ref, p.constraints(self)])
+        gradient = p.moment.imag * self.inv_l_ref
+        if not self.topology.n_chords:
+            return gradient
+        return np.concatenate([gradient, p.constraints(self)])
 
     def jacobian(self, y, s):
         return self.jacobian_at(self.point(y, s))
 
     def jacobian_at(self, p):
         n = self.topology.n_rods
-        jc = p.constraint_jacobian(self)
         out = np.zeros((self.size, self.size))
-        out[:n, :n] = p.hessian(self) / self.l_ref
-        out[:n, n:] = jc.T * (self.f_ref / self.l_ref)
-        out[n:, :n] = jc
+        np.multiply(p.hessian(self), self.inv_l_ref, out=out[:n, :n])
+        if self.topology.n_chords:
+            jc = out[n:, :n] = p.constraint_jacobian(self)
+            np.multiply(jc.T, self.f_ref_per_l_ref, out=out[:n, n:])
         return out
 
     def _rates(self, p):
-        """d(rod vectors)/ds, d(element differences)/ds at fixed state (kept in the point)."""
+        """At fixed state, kept in the point: (rate of the rod lengths / length, d(rod
+        vectors)/ds, d(element differences)/ds, Re(conj(diff) d diff/ds))."""
         if p.rates is None:
             rate = self._rate_values
-            d_rods = p.rods * (rate.rod / p.values.rod)
-            p.rates = d_rods, self.topology.element_rods_c @ d_rods + rate.shift
+            if not self._moving['rod']:             # rigid rods: only the base moves
+                p.rates = None, None, rate.shift, p.diff.real * rate.shift
+                return p.rates
+            ratio = rate.rod / p.values.rod
+            d_rods = p.rods * ratio
+            d_diff = self.topology.element_rods_c @ d_rods
+            d_diff += rate.shift
+            p.rates = ratio, d_rods, d_diff, (p.diff.conj() * d_diff).real
         return p.rates
 
     def residual_s(self, y, s):
@@ -464,13 +516,23 @@ class StackPath:
 
     def residual_s_at(self, p):
         top, rate = self.topology, self._rate_values
-        d_rods, d_diff = self._rates(p)
-        d_force = (top.element_rods_tc @ (rate.weights * p.diff + p.weights * d_diff)
-                   - rate.rod_loads)
-        d_gradient = (p.rods.conj() * d_force + d_rods.conj() * p.force).imag
-        ns = top.n_springs
-        d_c = ((p.diff[ns:].conj() * d_diff[ns:]).real - p.values.chord * rate.chord) / self.l_ref
-        return np.concatenate([d_gradient / self.l_ref, d_c])
+        ratio, _, d_diff, cross = self._rates(p)
+        moving = self._moving
+        d_weighted = p.weights * d_diff
+        if moving['k']:
+            d_weighted = d_weighted + rate.weights * p.diff      # (complex where rods are still)
+        d_force = top.element_rods_tc @ d_weighted
+        if moving['rod_loads']:
+            d_force -= rate.rod_loads
+        out = np.empty(self.size)
+        n, ns = top.n_rods, top.n_springs
+        # d Im(conj(v) f) with dv = ratio v: Im(conj(v) df) + ratio Im(conj(v) f)
+        d_gradient = (p.rods.conj() * d_force).imag
+        if ratio is not None:
+            d_gradient += ratio * p.moment.imag
+        out[:n] = d_gradient * self.inv_l_ref
+        out[n:] = (cross[ns:] - p.values.chord * rate.chord) * self.inv_l_ref
+        return out
 
     def energy(self, y, s):
         """The Lagrangian U + mu . c (equal to U on the constraint manifold)."""
@@ -479,7 +541,9 @@ class StackPath:
     def energy_at(self, p):
         v, ns = p.values, self.topology.n_springs
         springs = 0.5 * float(v.k @ p.squares[:ns])
-        work = float((v.rod_loads.conj() @ p.rods).real) + v.base_load * v.rho0
+        work = np.vdot(v.rod_loads, p.rods).real + v.base_load * v.rho0
+        if not self.topology.n_chords:
+            return springs - work
         return springs - work + float(p.mu @ p.constraints(self))
 
     def energy_and_rate(self, y, s):
@@ -492,11 +556,18 @@ class StackPath:
 
     def energy_s_at(self, p):
         v, rate, ns = p.values, self._rate_values, self.topology.n_springs
-        d_rods, d_diff = self._rates(p)
-        springs = (0.5 * float(rate.k @ p.squares[:ns])
-                   + float(p.weights @ (p.diff.conj() * d_diff).real))
-        work = (float((rate.rod_loads.conj() @ p.rods + v.rod_loads.conj() @ d_rods).real)
-                + rate.base_load * v.rho0 + v.base_load * rate.rho0)
+        _, d_rods, _, cross = self._rates(p)
+        moving = self._moving
+        springs = float(p.weights @ cross)
+        if moving['k']:
+            springs += 0.5 * float(rate.k @ p.squares[:ns])
+        work = rate.base_load * v.rho0 + v.base_load * rate.rho0
+        if moving['rod_loads']:
+            work += np.vdot(rate.rod_loads, p.rods).real
+        if d_rods is not None:
+            work += np.vdot(v.rod_loads, d_rods).real
+        if not self.topology.n_chords:
+            return springs - work
         return springs - work - float(p.mu @ (v.chord * rate.chord)) / self.l_ref
 
     def _reduced(self, y, s):
@@ -587,14 +658,14 @@ class StackPath:
     # -- reporting ---------------------------------------------------------------
     def angles(self, y, s):
         """Local angles (N x 2): t1 of A1A3 from the module's x axis, t2 of A2A4 from -x."""
-        p = self.point(y, s)
-        frame = np.concatenate([[1.0], p.chords(self)])          # module x axes A1 -> A2
-        frame = frame / np.abs(frame)
-        rods = (p.rods / p.values.rod).reshape(self.n, 2)
-        local = np.empty((self.n, 2), dtype=complex)
-        local[:, 0] = rods[:, 0] * frame.conj()
-        local[:, 1] = -frame / rods[:, 1]
-        return np.angle(local)
+        return self.angles_at(self.point(y, s))
+
+    def angles_at(self, p):
+        # module x axes A1 -> A2 (unnormalised: angles are blind to positive scale);
+        # t1 = arg(v1 conj(x)) = -arg(conj(v1) x), t2 = arg(-x conj(v2))
+        frame = np.concatenate([[1.0], p.chords(self)])
+        local = p.rods.reshape(self.n, 2).conj() * (frame[:, None] * _FRAME_SIGNS)
+        return np.angle(local) * _ANGLE_SIGNS
 
     def state_from_angles(self, theta, s):
         """Rod angles from local angles (N x 2), projected onto the constraints."""
@@ -615,11 +686,14 @@ class StackPath:
 
         Module 0: dL/d rho(0) at fixed state (rho(0) moves A2(0) and every node built on
         it); module i >= 1: its rod is module i-1's chord, dL/dl = -mu l / l_ref."""
-        p = self.point(y, s)
+        return self.actuator_forces_at(self.point(y, s))
+
+    def actuator_forces_at(self, p):
         forces = np.empty(self.n)
         forces[0] = (float(p.weights @ (p.diff.real * self.topology.element_base))
                      - p.values.base_load)
-        forces[1:] = -p.mu * p.values.chord / self.l_ref
+        if self.topology.n_chords:
+            forces[1:] = -p.mu * p.values.chord / self.l_ref
         return forces
 
     def base_reaction(self, y, s):
@@ -695,17 +769,18 @@ class StackEquilibrium:
 
 
 def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
-    nodes = path.nodes(y, s)
-    top = path.topology
-    a3, a4 = nodes[top.a3(path.n - 1)], nodes[top.a4(path.n - 1)]
-    head = a3 - a4
+    p = path.point(y, s)
+    nodes = path.nodes_at(p)
+    (x3, y3), (x4, y4) = nodes[-2:].tolist()          # the top chord: A3(N-1), A4(N-1)
     return StackEquilibrium(
-        theta=path.angles(y, s), nodes=nodes,
-        eigenvalues=path.eigenvalues(y, s) if eigenvalues is None else eigenvalues,
-        energy=path.energy(y, s) if energy is None else energy, actuator_forces=path.actuator_forces(y, s),
-        residual=float(np.max(np.abs(path.residual(y, s)))) if residual is None else residual,
+        theta=path.angles_at(p), nodes=nodes,
+        eigenvalues=path.eigenvalues_at(p) if eigenvalues is None else eigenvalues,
+        energy=path.energy_at(p) if energy is None else energy,
+        actuator_forces=path.actuator_forces_at(p),
+        residual=float(np.max(np.abs(path.residual_at(p)))) if residual is None else residual,
         state=np.array(y),
-        head_position=0.5 * (a3 + a4), head_angle=math.atan2(head[1], head[0]),
+        head_position=np.array([0.5 * (x3 + x4), 0.5 * (y3 + y4)]),
+        head_angle=math.atan2(y3 - y4, x3 - x4),
         parameters=path.parameter_vector(s).tobytes())
 
 

@@ -130,7 +130,10 @@ def _serialized_layout(msg, arrays):
     if any(not w or buffer.count(w) != 1 for w in wanted):
         return None
     starts = [buffer.find(w) for w in wanted]
-    return buffer, starts[0], tuple((s, s + len(w)) for s, w in zip(starts[1:], wanted[1:]))
+    spans = tuple((s, s + len(w)) for s, w in zip(starts[1:], wanted[1:]))
+    # effort, the last field, ends the message: what the serializer leaves after it (a
+    # few bytes of its buffer) is not sent
+    return buffer[:max(end for _, end in spans)], starts[0], spans
 
 
 #: DiagnosticStatus level of a simulator status level.

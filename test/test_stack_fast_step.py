@@ -6,19 +6,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
+from tensegrity_ros.core.stack import StackPath, settle_stack, track_stack
 from tensegrity_ros.core.stack_fast_step import _KEPT
-
-
-def random_stack(rng, n):
-    return Stack(tuple(ModuleParams(rho=rng.uniform(0.6, 0.8), L1=rng.uniform(0.9, 1.1),
-                                    L2=rng.uniform(0.9, 1.1), ka=rng.uniform(80, 120),
-                                    kb=rng.uniform(80, 120), kc=rng.uniform(80, 120),
-                                    f3x=rng.uniform(-1, 1), f3y=rng.uniform(-2, 2),
-                                    f4x=rng.uniform(-1, 1), f4y=rng.uniform(-2, 2),
-                                    m1=rng.uniform(0, 0.2), m2=rng.uniform(0, 0.2))
-                       for _ in range(n)))
+from test_stack_formulations import random_stack
 
 
 def without_kept(record):

@@ -49,6 +49,7 @@ _FIXED = 2          # A1(0) and A2(0) are the first two entries of the node tabl
 _DAMPING = 1e-3
 _DAMPING_ONSET = 1e-2
 _FRAME_SIGNS, _ANGLE_SIGNS = np.array([1.0, -1.0]), np.array([-1.0, 1.0])  # StackPath.angles_at
+_BASE_AXIS = np.ones(1, dtype=complex)      # module 0's x axis A1(0) -> A2(0), as a chord
 
 
 def _solve_guarded(matrix, rhs):
@@ -412,8 +413,8 @@ class StackPath:
         self._zero_values = zero
         rate = self._rate_values = _Values.difference(top, one, zero)
         # which parameter groups move along the path (a still group adds nothing to d/ds)
-        self._moving = {'rod': rate.rod.any(), 'k': rate.k.any(),
-                        'rod_loads': rate.rod_loads.any()}
+        changes, layout = rate.data.tolist(), top.value_layout     # (Python: a few floats)
+        self._moving = {name: any(changes[layout[name]]) for name in ('rod', 'k', 'rod_loads')}
         self._values = {0.0: zero, 1.0: one}
         self._point = None
 
@@ -663,7 +664,7 @@ class StackPath:
     def angles_at(self, p):
         # module x axes A1 -> A2 (unnormalised: angles are blind to positive scale);
         # t1 = arg(v1 conj(x)) = -arg(conj(v1) x), t2 = arg(-x conj(v2))
-        frame = np.concatenate([[1.0], p.chords(self)])
+        frame = np.concatenate((_BASE_AXIS, p.chords(self)))
         local = p.rods.reshape(self.n, 2).conj() * (frame[:, None] * _FRAME_SIGNS)
         return np.angle(local) * _ANGLE_SIGNS
 

@@ -46,7 +46,7 @@ def _start_point(path, y, known):
     kept = None if known is None else known.__dict__.get(_KEPT)
     if kept is not None and kept[0] == path.l_ref and kept[1] == path.f_ref:
         point = kept[2]
-        if point.values is path.at(0.0) and np.array_equal(known.state, y):
+        if point.values is path.at(0.0) and (y is known.state or np.array_equal(known.state, y)):
             point.rates = None
             return point
     return path.evaluate(y, 0.0)
@@ -60,6 +60,7 @@ def _newton(path, y, tol, iterations):
     iterates move by ~1e-6, so the contraction stays fast.  An update at rounding level
     is not applied (the point is converged; its residual is already known)."""
     previous = math.inf
+    rounding = 1e-14 * (1.0 + _inf_norm(y))       # an update this small is rounding
     point = path.evaluate(y, 1.0)
     f = path.residual_at(point)
     lu, pivots, info = _dgetrf(path.jacobian_at(point))
@@ -70,7 +71,7 @@ def _newton(path, y, tol, iterations):
         size = _inf_norm(delta)
         if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
             break
-        if size <= 1e-14 * (1.0 + _inf_norm(y)):
+        if size <= rounding:
             break
         y = y - delta
         point = path.evaluate(y, 1.0)

@@ -38,6 +38,7 @@ import argparse
 import json
 import math
 import os
+import statistics
 import subprocess
 import sys
 import threading
@@ -639,7 +640,7 @@ def _print_neck(runs, args):
           'on through a later command (node behind), untraced = lost (node /diagnostics)')
     print(f'{"run":>3} {"process":<17} {"sent":>6} {"unanswered":>10} {"coalesced":>9} '
           f'{"untraced":>8} {"p50":>8} {"p90":>8} {"p99":>8} {"max":>9} {"cpu/cmd":>8}')
-    ok = bool(runs)
+    met_runs, ratios = 0, []
     for i, stats in enumerate(runs):
         for t, st in stats.items():
             print(f'{i:>3} {t:<17} {st["sent"]:>6} {st["lost"]:>10} '
@@ -649,10 +650,17 @@ def _print_neck(runs, args):
         node, relay = stats['bench_neck_node'], stats['bench_neck_relay']
         ratio = node['p50_us'] / relay['p50_us']
         met = node['lost'] == 0 and ratio <= 2.0
-        ok = ok and met
+        met_runs += met
+        ratios.append(ratio)
         print(f'{i:>3} node/relay p50 ratio {ratio:.2f}, cpu/cmd ratio '
               f'{node["cpu_us_per_command"] / relay["cpu_us_per_command"]:.2f} '
               f'(target: p50 ratio <= 2, every command answered): {"met" if met else "NOT met"}')
+    ok = bool(runs) and met_runs == len(runs)
+    if runs:        # a shared machine: the median and the best run say more than one run
+        fewest = min(r['bench_neck_node']['lost'] for r in runs)
+        print(f'target met in {met_runs} of {len(runs)} runs; p50 ratio median '
+              f'{statistics.median(ratios):.2f}; fewest unanswered {fewest} of '
+              f'{runs[0]["bench_neck_node"]["sent"]}')
     print('target met in every run' if ok else 'target NOT met')
     return ok
 

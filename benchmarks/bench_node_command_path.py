@@ -4,8 +4,8 @@ beside the simulator call inside it and beside a bare relay's callback, in one p
 
 ``tensegrity_node`` on config/neck.yaml (``--config`` for another) is built in-process and
 its ``joint_commands`` subscription callback is called directly with serialized commands,
-as the executor calls it: the neck bench's stream (bench_node_latency.py --neck: three
-``m*_rho`` targets on small sines).  Per command, side by side:
+as the executor calls it: the neck bench's stream (bench_node_latency.py --neck: every
+module's ``<m>_rho`` on a small sine around its rho_initial).  Per command, side by side:
 
 * node: the whole callback -- read the bytes, check, coalesce, track, publish joint_states;
 * simulator: ``Simulator.command_rhos`` on the same targets, on a second simulator built
@@ -32,47 +32,47 @@ from pathlib import Path
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_node_latency import NECK_AMPLITUDE, NECK_CONFIG, NECK_PERIOD, NECK_RHO  # noqa: E402
+from bench_node_latency import NECK_AMPLITUDE, NECK_CONFIG, NECK_PERIOD  # noqa: E402
 
 WARM_UP = 200
 
 
-def neck_commands(count):
-    """(serialized joint_commands, {module: rho}) of the neck bench's stream."""
+def neck_commands(modules, start_rhos, count):
+    """(serialized joint_commands, {module index: rho}) of the neck bench's stream: every
+    module's rho on a small sine (phase-shifted per module) around ``start_rhos``."""
     from rclpy.serialization import serialize_message
     from sensor_msgs.msg import JointState
     out = []
     for i in range(count):
         phase = 2 * math.pi * i / NECK_PERIOD
-        rhos = [rho + NECK_AMPLITUDE * math.sin(phase + j) for j, rho in enumerate(NECK_RHO)]
-        msg = JointState(name=[f'm{j}_rho' for j in range(len(rhos))], position=rhos)
+        rhos = [rho + NECK_AMPLITUDE * math.sin(phase + j) for j, rho in enumerate(start_rhos)]
+        msg = JointState(name=[f'{m}_rho' for m in modules], position=rhos)
         out.append((serialize_message(msg), dict(enumerate(rhos))))
     return out
 
 
-def relay_callback(publisher):
+def relay_callback(publisher, modules):
     """A bare relay's callback: deserialize, answer with a JointState, publish."""
     from rclpy.serialization import deserialize_message
     from sensor_msgs.msg import JointState
+    names = [f'{m}_{k}' for m in modules for k in ('rho', 'theta1', 'theta2')]
 
     def callback(raw):
         msg = deserialize_message(raw, JointState)
         rho = dict(zip(msg.name, msg.position))
-        names = [f'm{j}_{k}' for j in range(3) for k in ('rho', 'theta1', 'theta2')]
-        position = [rho.get(f'm{j}_rho', 0.0) if k == 0 else 0.0
-                    for j in range(3) for k in range(3)]
-        publisher.publish(JointState(name=names, position=position, effort=[0.0] * 9))
+        position = [v for m in modules for v in (rho.get(f'{m}_rho', 0.0), 0.0, 0.0)]
+        publisher.publish(JointState(name=names, position=position, effort=[0.0] * len(names)))
     return callback
 
 
-def _ros_layer_alone(node, callback, count):
+def _ros_layer_alone(node, callback, commands):
     """Per-command times (us) of the node callback with the simulator call answering at once."""
     from tensegrity_ros.core.events import Outcome
     accepted = Outcome()
     node.simulator.command_rhos = lambda *args, **kwargs: accepted   # this instance only
     try:
         times = []
-        for i, (raw, _) in enumerate(neck_commands(WARM_UP + count)):
+        for i, (raw, _) in enumerate(commands):
             t0 = time.perf_counter()
             callback(raw)
             if i >= WARM_UP:
@@ -97,12 +97,15 @@ def measure(config, count):
     try:
         callback = next(s.callback for s in node.subscriptions
                         if s.topic_name.endswith('/joint_commands'))
-        twin = Simulator(*node._initial_configuration(),
+        start_modules, start_thetas = node._initial_configuration()
+        twin = Simulator(start_modules, start_thetas,
                          limits=[node.simulator.limits(i) for i in range(len(node.modules))])
-        relay_cb = relay_callback(relay.create_publisher(JointState, 'joint_states', 10))
+        relay_cb = relay_callback(relay.create_publisher(JointState, 'joint_states', 10),
+                                  node.modules)
+        commands = neck_commands(node.modules, [p.rho for p in start_modules], WARM_UP + count)
         times = {'node': [], 'simulator': [], 'relay': []}
         before = node.counters['commands_processed']
-        for i, (raw, targets) in enumerate(neck_commands(WARM_UP + count)):
+        for i, (raw, targets) in enumerate(commands):
             t0 = time.perf_counter()
             callback(raw)
             t1 = time.perf_counter()
@@ -113,7 +116,7 @@ def measure(config, count):
             if i >= WARM_UP:
                 for key, dt in zip(times, (t1 - t0, t2 - t1, t3 - t2)):
                     times[key].append(dt * 1e6)
-        times['ros layer'] = _ros_layer_alone(node, callback, count)
+        times['ros layer'] = _ros_layer_alone(node, callback, commands)
         processed = node.counters['commands_processed'] - before
         if processed != 2 * (WARM_UP + count):
             raise RuntimeError(f'the node processed {processed} of {2 * (WARM_UP + count)} '

@@ -283,9 +283,10 @@ class _Values:
         try:
             return self._scales
         except AttributeError:
-            l_ref = float(self.rod.sum()) / top.n_rods
-            weights = top.angle_mask * (float((top.node_rods @ self.rod).max()) / l_ref)
-            self._scales = (l_ref, float(self.k.max()) * l_ref, weights)
+            # (Python's sum and max on a few floats: cheaper than ndarray.sum and .max)
+            l_ref = sum(self.rod.tolist()) / top.n_rods
+            weights = top.angle_mask * (max((top.node_rods @ self.rod).tolist()) / l_ref)
+            self._scales = (l_ref, max(self.k.tolist()) * l_ref, weights)
             return self._scales
 
     @classmethod

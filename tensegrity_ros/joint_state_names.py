@@ -5,8 +5,8 @@ named ``'m0_rho\\x00'`` arrives as ``'m0_rho'`` and would command ``m0``.  The n
 receives ``joint_commands`` serialized and reads the names from the CDR bytes with this
 module, so that names are compared exactly.  :func:`names_and_positions` reads the
 positions in the same pass: the node then needs no second, full deserialization of
-every command (rclpy's costs about 15 us, several times this reader).  ROS-free (plain
-``struct``).
+every command (rclpy's took 11-17 us per neck command here, this reader about 5).
+ROS-free (plain ``struct``).
 """
 from __future__ import annotations
 

@@ -68,12 +68,13 @@ class JointStateBuffer:
 
     def __init__(self, modules, velocity=False):
         names = [name for m in modules for name in joint_names(m)]
-        zeros = array.array('d', [0.0] * len(names))
-        self.msg = JointState(name=names, position=zeros, effort=zeros)
+        self.msg = JointState(name=names)
+        self.msg.position = array.array('d', [0.0] * len(names))
+        self.msg.effort = array.array('d', [0.0] * len(names))
         if velocity:                # dynamics mode: rho', theta1', theta2'
-            self.msg.velocity = zeros
-        self._position = self.msg.position      # the message's own arrays (updated in
-        self._effort = self.msg.effort          # place; copies of zeros, not shared)
+            self.msg.velocity = array.array('d', [0.0] * len(names))
+        self._position = self.msg.position      # the message's own arrays, updated in place
+        self._effort = self.msg.effort
         self._velocity = self.msg.velocity if velocity else None
         self._layout = _serialized_layout(self.msg, self._arrays())
 

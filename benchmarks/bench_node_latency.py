@@ -27,12 +27,18 @@ relay unanswered, side by side.
 
 Targets: node p50 within 1.5x of the relay's, no command lost (untraced) at 1 kHz
 (issue #3); under load no more lost than the relay (issue 12).
+
+The neck (``--neck``, issue 14): config/neck.yaml driven by ``joint_commands`` (three
+``m*_rho`` targets) at 1 kHz beside a bare joint_commands relay; it counts unanswered
+commands and splits them into coalesced (acted on through a later one) and untraced
+(lost), see :func:`neck_main`.  Target: every command answered, p50 within 2x.
 Exit status 0 unless ``--strict`` and a target is missed.
 """
 import argparse
 import json
 import math
 import os
+import statistics
 import subprocess
 import sys
 import threading
@@ -138,6 +144,9 @@ def run_relay(executor_kind='single'):
 
 
 class Driver:
+    #: hardware_id of the node under test in /diagnostics (its fully qualified name)
+    NODE_ID = '/bench_node/tensegrity'
+
     def __init__(self, targets):
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
@@ -190,7 +199,7 @@ class Driver:
 
         def on_diagnostics(msg):
             for status in msg.status:
-                if status.hardware_id == '/bench_node/tensegrity' and \
+                if status.hardware_id == self.NODE_ID and \
                         status.name.endswith(': node'):
                     self.counters = {kv.key: int(kv.value) for kv in status.values}
                     self.diagnostics_seen += 1
@@ -514,6 +523,8 @@ class NeckDriver(Driver):
     """The driver with joint_commands (three m*_rho targets) instead of m0/rho_cmd; a
     command is identified by its m0_rho value, the first entry of joint_states."""
 
+    NODE_ID = '/bench_neck_node/tensegrity'
+
     def __init__(self, targets):
         super().__init__(targets)
         from sensor_msgs.msg import JointState
@@ -552,12 +563,21 @@ class NeckDriver(Driver):
 
 def neck_main(argv=None):
     """The neck at 1 kHz (issue 14): tensegrity_node on config/neck.yaml and a bare
-    joint_commands relay side by side; target: nothing lost, node p50 within 2x the relay's."""
+    joint_commands relay side by side, ``--runs`` measured streams in one start-up.
+
+    What is counted, per run (the node's counters from its /diagnostics, 10 Hz here):
+    ``unanswered`` = commands no joint_states reported (by value of m0_rho); of those, the
+    node's ``coalesced`` ones were acted on through a later command that waited with them
+    (the node fell behind and tracked only the latest target), and ``untraced`` = sent -
+    processed - coalesced - rejected were lost without a trace (0 unless the transport
+    dropped them).  Target: every command answered (nothing coalesced or lost: the node
+    keeps up at 1 kHz) and node p50 within 2x the relay's, in every run."""
     parser = argparse.ArgumentParser(description=neck_main.__doc__.split('\n')[0])
     parser.add_argument('--neck', action='store_true', help='run the neck case (this one)')
     parser.add_argument('--neck-relay', action='store_true', help=argparse.SUPPRESS)
     parser.add_argument('--rate', type=float, default=1000.0)
     parser.add_argument('--seconds', type=float, default=4.0)
+    parser.add_argument('--runs', type=int, default=1, help='measured streams (one start-up)')
     parser.add_argument('--node-executor', choices=['single', 'events'], default='events')
     parser.add_argument('--strict', action='store_true', help='exit 1 if the target is missed')
     args, _ros_args = parser.parse_known_args(argv)
@@ -569,44 +589,80 @@ def neck_main(argv=None):
     commands = {
         'bench_neck_node': [sys.executable, '-m', 'tensegrity_ros.node', '--executor',
                             args.node_executor, '--ros-args', '--params-file',
-                            str(NECK_CONFIG), '-r', '__ns:=/bench_neck_node'],
+                            str(NECK_CONFIG), '-r', '__ns:=/bench_neck_node',
+                            '-p', 'diagnostics_rate:=10.0'],
         'bench_neck_relay': [sys.executable, __file__, '--neck-relay', '--ros-args',
                              '-r', '__ns:=/bench_neck_relay'],
     }
     procs = [subprocess.Popen(c, cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
                               stderr=subprocess.PIPE, text=True) for c in commands.values()]
-    driver, stats, cpu = None, {}, {}
+    driver, runs = None, []
     try:
         driver = NeckDriver(list(commands))
         if not driver.wait_matched(60.0):
             raise RuntimeError('neck node or relay not discovered within 60 s')
         values = driver.stream(200.0, 200, 0)                  # warm-up, discarded
+        base = len(values)
         driver.wait_received(values, 10.0)
-        count = int(args.rate * args.seconds)
-        cpu0 = {t: _cpu_seconds(p.pid) for t, p in zip(commands, procs)}
-        values = driver.stream(args.rate, count, len(values))
-        driver.wait_received(values, 5.0)
-        stats = {t: driver.stats(t, values) for t in commands}
-        cpu = {t: (_cpu_seconds(p.pid) - cpu0[t]) / count * 1e6 for t, p in zip(commands, procs)}
+        for _ in range(args.runs):
+            runs.append(_neck_run(driver, procs, int(args.rate * args.seconds), args.rate, base))
+            base += int(args.rate * args.seconds)
     finally:
         if driver is not None:
             driver.close()
         _stop(procs)
-    load = os.getloadavg()[0]
-    print(f'neck (config/neck.yaml), joint_commands with three m*_rho targets at '
-          f'{args.rate:g} Hz for {args.seconds:g} s, small moves (+-{NECK_AMPLITUDE * 1e3:g} mm); '
-          f'latency command -> joint_states (us); {os.cpu_count()} CPUs, load {load:.1f}')
-    print(f'{"process":<17} {"sent":>6} {"lost":>5} {"p50":>8} {"p90":>8} {"p99":>8} '
-          f'{"max":>9} {"cpu/cmd":>8}')
-    for t, st in stats.items():
-        print(f'{t:<17} {st["sent"]:>6} {st["lost"]:>5} {st["p50_us"]:>8.0f} {st["p90_us"]:>8.0f} '
-              f'{st["p99_us"]:>8.0f} {st["max_us"]:>9.0f} {cpu[t]:>8.0f}')
-    node, relay = stats['bench_neck_node'], stats['bench_neck_relay']
-    ratio = node['p50_us'] / relay['p50_us']
-    ok = node['lost'] == 0 and ratio <= 2.0
-    print(f'node/relay p50 ratio {ratio:.2f} (target <= 2, nothing lost): '
-          f'{"met" if ok else "NOT met"}')
+    ok = _print_neck(runs, args)
     return 1 if (args.strict and not ok) else 0
+
+
+def _neck_run(driver, procs, count, rate, base):
+    """One measured stream: latency and CPU per command of both processes, and the
+    node's account of the commands (coalesced, untraced) from its /diagnostics."""
+    names = list(driver.targets)
+    before = driver.settled_counters(5.0)
+    cpu0 = [_cpu_seconds(p.pid) for p in procs]
+    values = driver.stream(rate, count, base)
+    driver.wait_received(values, 5.0)
+    cpu = [(_cpu_seconds(p.pid) - c) / count * 1e6 for p, c in zip(procs, cpu0)]
+    stats = {t: dict(driver.stats(t, values), cpu_us_per_command=c) for t, c in zip(names, cpu)}
+    stats['bench_neck_node'].update(_accounted(before, driver.settled_counters(30.0), count))
+    return stats
+
+
+def _print_neck(runs, args):
+    """The table of every run; True if every run meets the target."""
+    print(f'neck (config/neck.yaml), joint_commands with three m*_rho targets at '
+          f'{args.rate:g} Hz for {args.seconds:g} s per run, small moves '
+          f'(+-{NECK_AMPLITUDE * 1e3:g} mm); latency command -> joint_states (us); '
+          f'{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}; node executor '
+          f'{args.node_executor}')
+    print('unanswered = no joint_states reported the command; of those, coalesced = acted '
+          'on through a later command (node behind), untraced = lost (node /diagnostics)')
+    print(f'{"run":>3} {"process":<17} {"sent":>6} {"unanswered":>10} {"coalesced":>9} '
+          f'{"untraced":>8} {"p50":>8} {"p90":>8} {"p99":>8} {"max":>9} {"cpu/cmd":>8}')
+    met_runs, ratios = 0, []
+    for i, stats in enumerate(runs):
+        for t, st in stats.items():
+            print(f'{i:>3} {t:<17} {st["sent"]:>6} {st["lost"]:>10} '
+                  f'{st.get("coalesced", "-"):>9} {st.get("untraced", "-"):>8} '
+                  f'{st["p50_us"]:>8.0f} {st["p90_us"]:>8.0f} {st["p99_us"]:>8.0f} '
+                  f'{st["max_us"]:>9.0f} {st["cpu_us_per_command"]:>8.0f}')
+        node, relay = stats['bench_neck_node'], stats['bench_neck_relay']
+        ratio = node['p50_us'] / relay['p50_us']
+        met = node['lost'] == 0 and ratio <= 2.0
+        met_runs += met
+        ratios.append(ratio)
+        print(f'{i:>3} node/relay p50 ratio {ratio:.2f}, cpu/cmd ratio '
+              f'{node["cpu_us_per_command"] / relay["cpu_us_per_command"]:.2f} '
+              f'(target: p50 ratio <= 2, every command answered): {"met" if met else "NOT met"}')
+    ok = bool(runs) and met_runs == len(runs)
+    if runs:        # a shared machine: the median and the best run say more than one run
+        fewest = min(r['bench_neck_node']['lost'] for r in runs)
+        print(f'target met in {met_runs} of {len(runs)} runs; p50 ratio median '
+              f'{statistics.median(ratios):.2f}; fewest unanswered {fewest} of '
+              f'{runs[0]["bench_neck_node"]["sent"]}')
+    print('target met in every run' if ok else 'target NOT met')
+    return ok
 
 
 if __name__ == '__main__':

@@ -3,7 +3,10 @@
 rclpy cuts a string at its first NUL when it converts a message to Python, so a joint
 named ``'m0_rho\\x00'`` arrives as ``'m0_rho'`` and would command ``m0``.  The node
 receives ``joint_commands`` serialized and reads the names from the CDR bytes with this
-module, so that names are compared exactly.  ROS-free (plain ``struct``).
+module, so that names are compared exactly.  :func:`names_and_positions` reads the
+positions in the same pass: the node then needs no second, full deserialization of
+every command (rclpy's took 11-17 us per neck command here, this reader about 5).
+ROS-free (plain ``struct``).
 """
 from __future__ import annotations
 
@@ -12,28 +15,72 @@ import struct
 #: CDR encapsulation identifiers of plain (non-parameter-list) data, big/little endian:
 #: CDR_BE, CDR_LE (XCDR1) and PLAIN_CDR2_BE, PLAIN_CDR2_LE (XCDR2).
 _PLAIN = {0x0000: '>', 0x0001: '<', 0x0006: '>', 0x0007: '<'}
+#: The XCDR1 ones (8-byte values aligned to 8; XCDR2 aligns them to 4).
+_XCDR1 = {0x0000: '>', 0x0001: '<'}
 _HEADER = 4          # encapsulation id and options precede the aligned body
 
 
 def exact_names(raw: bytes):
     """The ``name`` strings of a serialized JointState (NULs and all), or None if the
     encoding is not one this reader knows or the bytes are malformed."""
-    if len(raw) < _HEADER:
-        return None
-    order = _PLAIN.get(int.from_bytes(raw[:2], 'big'))
+    order = _order(raw, _PLAIN)
     if order is None:
         return None
     try:
-        offset = _HEADER + 8                          # header.stamp: sec, nanosec
-        _, offset = _string(raw, offset, order)       # header.frame_id
-        count, offset = _uint32(raw, offset, order)
-        names = []
-        for _ in range(count):
-            name, offset = _string(raw, offset, order)
-            names.append(name)
-        return names
+        return _names(raw, order)[0]
     except (struct.error, ValueError):
         return None
+
+
+def names_and_positions(raw: bytes):
+    """(names exactly as sent, positions as floats) of a JointState serialized as plain
+    CDR (XCDR1: what the ROS 2 middlewares send), or None for another encoding or bytes
+    that are not a whole JointState (read those with rclpy's ``deserialize_message``).
+    ``velocity`` and ``effort`` are skipped, but must be there."""
+    order = _order(raw, _XCDR1)
+    if order is None:
+        return None
+    try:
+        names, offset = _names(raw, order)
+        positions, offset = _doubles(raw, offset, order)
+        for _ in ('velocity', 'effort'):
+            _, offset = _doubles(raw, offset, order, skip=True)
+        return names, positions
+    except (struct.error, ValueError):
+        return None
+
+
+def _order(raw, encodings):
+    """The byte order ('<' or '>') of ``raw``'s encapsulation if it is one of ``encodings``."""
+    if len(raw) < _HEADER:
+        return None
+    return encodings.get(int.from_bytes(raw[:2], 'big'))
+
+
+def _names(raw, order):
+    """(the name strings, the offset after them)."""
+    offset = _HEADER + 8                          # header.stamp: sec, nanosec
+    _, offset = _string(raw, offset, order)       # header.frame_id
+    count, offset = _uint32(raw, offset, order)
+    names = []
+    for _ in range(count):
+        name, offset = _string(raw, offset, order)
+        names.append(name)
+    return names, offset
+
+
+def _doubles(raw, offset, order, skip=False):
+    """A CDR sequence<double> (XCDR1: uint32 count, doubles aligned to 8 in the body):
+    (the values, or None if ``skip``; the offset after it)."""
+    count, offset = _uint32(raw, offset, order)
+    if count:
+        offset = _HEADER + -(-(offset - _HEADER) // 8) * 8
+    end = offset + 8 * count
+    if end > len(raw):
+        raise ValueError('sequence beyond the message')
+    if skip:
+        return None, end
+    return struct.unpack_from(f'{order}{count}d', raw, offset), end
 
 
 def _uint32(raw, offset, order):

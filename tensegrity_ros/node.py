@@ -50,7 +50,7 @@ from visualization_msgs.msg import MarkerArray
 
 from tensegrity_ros import node_parameters as params
 from tensegrity_ros import ros_conversions as conv
-from tensegrity_ros.joint_state_names import exact_names
+from tensegrity_ros.joint_state_names import exact_names, names_and_positions
 from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.params_file import ConfigError, check_parameter_file
 from tensegrity_ros.core.command_coalescing import LatestCommands, force_key, target_key
@@ -537,8 +537,11 @@ class TensegrityNode(Node):
         return read
 
     def _read_joint_commands(self, raw):
-        msg = deserialize_message(raw, JointState)
-        names, positions = exact_names(raw) or msg.name, msg.position
+        read = names_and_positions(raw)         # one pass over the bytes, names exact
+        if read is None:                        # another encoding: rclpy reads it
+            msg = deserialize_message(raw, JointState)
+            read = exact_names(raw) or msg.name, msg.position
+        names, positions = read
         if not names:
             return self._reject('size_mismatch', 'joint_commands: no joint names')
         if len(names) != len(positions):

@@ -1,11 +1,15 @@
-"""Exact joint names from serialized JointState bytes, checked against rclpy's own
-serialization (the reference) for names rclpy can carry, and against hand-placed NULs."""
+"""Exact joint names (and positions) from serialized JointState bytes, checked against
+rclpy's own serialization (the reference) for names rclpy can carry, and against
+hand-placed NULs."""
+import math
+import struct
+
 import pytest
 from hypothesis import given, settings, strategies as st
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
-from tensegrity_ros.joint_state_names import exact_names
+from tensegrity_ros.joint_state_names import exact_names, names_and_positions
 
 NAMES = st.lists(st.text(st.characters(blacklist_characters='\x00',
                                        blacklist_categories=('Cs',)), max_size=12),
@@ -35,3 +39,54 @@ def test_a_nul_inside_a_name_is_kept(name):
 def test_malformed_bytes_give_none_or_names_never_an_exception(raw):
     names = exact_names(raw)
     assert names is None or isinstance(names, list)
+
+
+DOUBLES = st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=7)
+
+
+def _same(a, b):
+    return len(a) == len(b) and all(x == y or (math.isnan(x) and math.isnan(y))
+                                    for x, y in zip(a, b))
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(NAMES, DOUBLES, DOUBLES, DOUBLES,
+       st.text(st.characters(blacklist_characters='\x00', blacklist_categories=('Cs',)),
+               max_size=9))
+def test_positions_as_rclpy_serializes_them(names, position, velocity, effort, frame_id):
+    """Every length of every array (none, fewer or more than names) and frame_id (each
+    shifts the 8-byte alignment), NaN and inf included: rclpy's round trip is the reference."""
+    msg = JointState(name=names, position=position, velocity=velocity, effort=effort)
+    msg.header.frame_id = frame_id
+    msg.header.stamp.sec = -3
+    raw = serialize_message(msg)
+    read_names, read_positions = names_and_positions(raw)
+    assert read_names == names
+    assert _same(read_positions, deserialize_message(raw, JointState).position)
+    assert all(isinstance(v, float) for v in read_positions)
+
+
+def test_a_cut_message_is_not_read():
+    """Bytes that stop anywhere before the last effort value are not a JointState."""
+    raw = serialize_message(JointState(name=['m0_rho'], position=[0.1], effort=[1.0, 2.0]))
+    whole = names_and_positions(raw)
+    assert whole == (['m0_rho'], (0.1,))
+    readings = [names_and_positions(raw[:cut]) for cut in range(len(raw))]
+    assert all(r is None or r == whole for r in readings)
+    shortest = min(cut for cut, r in enumerate(readings) if r is not None)
+    assert struct.unpack_from('<2d', raw, shortest - 16) == (1.0, 2.0)
+
+
+def test_xcdr2_is_left_to_rclpy():
+    """XCDR2 aligns doubles to 4, not 8: not read here (the node deserializes it)."""
+    raw = serialize_message(JointState(name=['m0_rho'], position=[0.1]))
+    xcdr2 = struct.pack('>H', 0x0007) + raw[2:]
+    assert exact_names(xcdr2) == ['m0_rho']
+    assert names_and_positions(xcdr2) is None
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.binary(max_size=64))
+def test_malformed_bytes_give_none_or_a_reading_never_an_exception(raw):
+    read = names_and_positions(raw)
+    assert read is None or (isinstance(read[0], list) and isinstance(read[1], tuple))

@@ -235,3 +235,25 @@ def test_force_topics_of_a_stack_module_are_tracked_in_the_base_frame(neck):
     # pushed sideways (+x) at m1's A3: the head moves toward +x
     h.spin_until(lambda: n.head[-1].pose.position.x > 0.046, what='head moved')
     assert n.head[-1].pose.position.x == pytest.approx(eq.head_position[0], abs=1e-12)
+
+
+def test_joint_commands_the_node_keeps_up_with_are_answered_one_to_one(neck):
+    """Each of 60 three-module joint_commands sent once the previous one is answered (the
+    node keeps up): every one is processed, none coalesced, and the joint_states that
+    answers it carries exactly the commanded rhos (read from the command's bytes,
+    published as bytes; every m0 value is new, so a publish_rate tick cannot pass for it)."""
+    n = neck()
+    h = n.h
+    before = h.node.counters
+    for i in range(60):
+        rhos = [rho + 1e-3 * math.sin(0.3 * i + j + 0.5) + 1e-13 * i
+                for j, rho in enumerate((0.09, 0.085, 0.08))]
+        sent = len(h.joint_states)
+        h.jc_pub.publish(JointState(name=[f'{m}_rho' for m in MODULES], position=rhos))
+        h.spin_until(lambda: len(h.joint_states) > sent and
+                     h.joint_states[-1].position[0] == rhos[0], what=f'answer to command {i}')
+        pos, _ = n.joints()
+        assert [pos[f'{m}_rho'] for m in MODULES] == rhos
+    after = h.node.counters
+    assert after['commands_processed'] - before['commands_processed'] == 60
+    assert after['commands_coalesced'] == before['commands_coalesced']

@@ -57,6 +57,9 @@ LANDING_OFFSET = 1e-6
 JUMP_DISTANCE = 1e-5
 #: Push-off from a saddle along its unstable mode (rad).
 PUSH_OFF = 1e-7
+#: Absolute tolerance (rad) of a flow leg's integration (the rest point itself is then
+#: certified by Newton, so this only has to keep the flow in its basin).
+FLOW_ATOL = 1e-11
 #: Longest flow (in units of the stiffest relaxation time) before the reference gives up.
 MAX_FLOW_TIME = 1e18
 #: Budgets: flow legs per rest, steps per path (the reference says so rather than hang).
@@ -145,9 +148,13 @@ class ModuleSystem:
         self.v0, self.g = values_of(start)
         v1, _ = values_of(start if end is None else end)
         self.dv = v1 - self.v0
+        self._last = None
 
     def point(self, s):
-        return Point.from_values(self.v0 + s * self.dv, self.g)
+        """The parameters at s (the last one kept: a flow evaluates one s many times)."""
+        if self._last is None or self._last[0] != s:
+            self._last = (s, Point.from_values(self.v0 + s * self.dv, self.g))
+        return self._last[1]
 
     def energy(self, t, s):
         return module_energy(self.point(s), t)
@@ -527,7 +534,10 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
         if elapsed > MAX_FLOW_TIME:
             raise NoRest(f'no certified rest at s={s!r} from {y0} after t={elapsed:g}')
         base = y if anchor is None else anchor
-        atol = 1e-14 if anchor is None else 1e-10 * float(np.max(np.abs(y - anchor)))
+        # tolerances relative to the state (rad), or to the motion off a saddle: the
+        # displacement of a leg is ~0 at its start, so an absolute 1e-14 on it would
+        # cap the steps through a fold's ghost (flows of ~1e9 relaxation times)
+        atol = FLOW_ATOL if anchor is None else 1e-10 * float(np.max(np.abs(y - anchor)))
         anchor = None
         weaker = lambda _, x: system.force(base + x, s) - target      # noqa: E731
         weaker.terminal, weaker.direction = True, -1
@@ -644,13 +654,24 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
         # the step stalled on a saddle (a branch point) but the bisection ended within
         # rounding of it: the landing is taken a little further on
         rest_b = flow_to_rest(system, y_a, min(1.0, s_b + LANDING_OFFSET))
-    if angle_distance(rest_b.state, y_a) <= JUMP_DISTANCE:
+    if angle_distance(rest_b.state, y_a) <= JUMP_DISTANCE or _continues(system, y_a, s_b,
+                                                                         rest_b.state):
         return s_b, rest_b.state          # continuous after all: where to step on from
     s_star, solved = critical_point_in(system, y_a, s_a, s_b)
     kind = classify(system, y_a, s_a)
     return ReferenceJump(s=s_star, s_before=s_a, s_after=s_b, departure=y_a,
                          landing=rest_b.state, kind=kind, solved=solved,
                          ambiguous=rest_b.ambiguous)
+
+
+def _continues(system, y_a, s_b, landing):
+    """Whether ``landing`` is the minimum y_a continues to at s_b: Newton from y_a ends on
+    a stable point that is the landing (modulo 2 pi).  Next to a fold the branch moves
+    like sqrt(s* - s), ~1e-5 rad over a bisection bracket, more than any fixed
+    "same state" distance that still tells a small jump from no jump."""
+    star, ok = system.critical_point(y_a, s_b)
+    return bool(ok and system.stability(star, s_b)[0][0] > 0
+                and angle_distance(star, landing) <= 1e-9)
 
 
 def _nearby_minimum(system, y_a, s_m, y_b):
@@ -664,7 +685,8 @@ def _nearby_minimum(system, y_a, s_m, y_b):
         return None
     if y_b is not None and angle_distance(star, y_a) >= angle_distance(star, y_b):
         return None
-    return star if system.energy(star, s_m) <= system.energy(y_a, s_m) else None
+    slack = 1e-13 * system.rate(s_m)     # energies differ by ~lambda d^2 ~ rounding here
+    return star if system.energy(star, s_m) <= system.energy(y_a, s_m) + slack else None
 
 
 def critical_point_in(system, y_a, s_a, s_b, slack=1e-10):

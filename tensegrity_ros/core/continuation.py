@@ -535,8 +535,23 @@ class _Tracker:
             landing, s_land = back.state, s_end
         if event is None:
             return landing, s_land, None
-        return landing, s_land, Event(kind=kind, s=s_star, state=y_star, landing_s=s_land,
-                                      landing=landing, ambiguous=ambiguous)
+        at_event, s_at = self.landing_at_event(landing, s_land, s_star)
+        return landing, s_land, Event(kind=kind, s=s_star, state=y_star, landing_s=s_at,
+                                      landing=at_event, ambiguous=ambiguous)
+
+    def landing_at_event(self, landing, s_land, s_star):
+        """The landing's stable equilibrium at the event's own s: (state, s).
+
+        The mechanism lands with the parameters frozen a little past s*, so the
+        landed minimum is followed back to s* (Newton; the landing branch is regular
+        there), so that a reported jump goes from and to equilibria at one parameter
+        value.  Tracking goes on from the frozen landing.  If the minimum does not
+        persist back to s* the frozen landing is reported with its own s."""
+        back = self.newton(landing, s_star)
+        if (back is not None and self.separation(back, landing) < self.settings.max_state_step
+                and self.definite(self.eigenvalues(back, s_star))):
+            return back, s_star
+        return landing, s_land
 
     def continuous(self, kind, s_star, y_star, s_land, landing):
         """Whether the landing is the tracked minimum going on rather than a jump.

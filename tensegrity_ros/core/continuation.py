@@ -291,6 +291,10 @@ class _Tracker:
         polished = self.newton(y, s)
         if polished is None and not self.residual_ok(y, s):   # a verified start near a
             raise TrackingError('the start state is not an equilibrium')   # singular point
+        if polished is not None and self.step_norm(polished - y) > cfg.passage_radius:
+            # Newton from a rough guess may converge to a minimum whose basin does not
+            # hold the guess: where the mechanism comes to rest is settle()'s to decide
+            raise TrackingError('the start state is not an equilibrium')
         y = y if polished is None else polished
         eigenvalues = self.eigenvalues(y, s)
         if not self.definite(eigenvalues):
@@ -324,6 +328,8 @@ class _Tracker:
                 found = self.crossing_on_path(y, s, tangent, s + ds)
             if found is None:           # rejected, or no crossing on the natural path
                 arc = self.arc_step(y, s, tangent, ds)
+                if arc is not None and arc[0] == 'regular' and arc[2] > s_end:
+                    arc = self.back_to_end(*arc[1:3], s_end)
                 if arc is not None and arc[0] == 'regular':
                     _, y1, s1, eig1 = arc
                     self.last_rate = (eig1[0] - eigenvalues[0]) / (s1 - s)
@@ -349,6 +355,19 @@ class _Tracker:
                                    f'step size underflow at s={s!r} ({reason})')
             ds *= 0.25 if reason == 'indefinite' else 0.5
         return self.result(y, s, eigenvalues, events)
+
+    def back_to_end(self, y1, s1, s_end):
+        """An arclength step that went past the end of the command, brought back to it
+        (a natural step back on the regular branch): ('regular', y, s_end, eigenvalues),
+        or ``None`` (the step is then refused and retried shorter)."""
+        try:
+            y = self.newton(y1 + (s_end - s1) * self.tangent(y1, s1), s_end)
+        except np.linalg.LinAlgError:
+            return None
+        if y is None or self.step_norm(y - y1) > self.settings.max_state_step:
+            return None
+        eigenvalues = self.eigenvalues(y, s_end)
+        return ('regular', y, s_end, eigenvalues) if self.definite(eigenvalues) else None
 
     def rescale(self, eigenvalues):
         """Tolerances follow the stiffness scale: the start's, or the local one where

@@ -255,6 +255,7 @@ class NeckSystem:
         self.v0 = np.array([v for v, _ in pairs])
         self.dv = np.array([values_of(m)[0] for m in end]) - self.v0
         self.n = len(start)
+        self._last = None
 
     def values(self, s):
         return self.v0 + s * self.dv
@@ -266,24 +267,23 @@ class NeckSystem:
         v = self.values(s)
         dtype = np.result_type(batch.dtype, float)
         out = np.zeros((batch.shape[0], self.n, 4, 2), dtype=dtype)
-        a1 = np.zeros((batch.shape[0], 2), dtype=dtype)
-        a2 = np.zeros((batch.shape[0], 2), dtype=dtype)
-        a2[:, 0] = v[0, 0]
+        a1x = a1y = a2y = np.zeros(batch.shape[0], dtype=dtype)
+        a2x = np.full(batch.shape[0], v[0, 0], dtype=dtype)
         for i in range(self.n):
-            d = a2 - a1
-            e = d / np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2)[:, None]
-            nrm = np.stack([-e[:, 1], e[:, 0]], axis=1)
-            t1, t2 = batch[:, i, 0][:, None], batch[:, i, 1][:, None]
+            dx, dy = a2x - a1x, a2y - a1y
+            norm = np.sqrt(dx * dx + dy * dy)
+            ex, ey = dx / norm, dy / norm             # base direction; its normal (-ey, ex)
+            c1, s1 = np.cos(batch[:, i, 0]), np.sin(batch[:, i, 0])
+            c2, s2 = np.cos(batch[:, i, 1]), np.sin(batch[:, i, 1])
             L1, L2 = v[i, 1], v[i, 2]
-            a3 = a1 + L1 * (np.cos(t1) * e + np.sin(t1) * nrm)
-            a4 = a2 + L2 * (-np.cos(t2) * e + np.sin(t2) * nrm)
-            out[:, i] = np.stack([a1, a2, a3, a4], axis=1)
-            a1, a2 = a4, a3
+            a3x, a3y = a1x + L1 * (c1 * ex - s1 * ey), a1y + L1 * (c1 * ey + s1 * ex)
+            a4x, a4y = a2x + L2 * (-c2 * ex - s2 * ey), a2y + L2 * (-c2 * ey + s2 * ex)
+            for k, (x, y) in enumerate(((a1x, a1y), (a2x, a2y), (a3x, a3y), (a4x, a4y))):
+                out[:, i, k, 0], out[:, i, k, 1] = x, y
+            a1x, a1y, a2x, a2y = a4x, a4y, a3x, a3y
         return out
 
-    def _energy_batch(self, theta, s):
-        x = self.nodes(theta, s)
-        v = self.values(s)
+    def _energy_of(self, x, v):
         sq = lambda d: d[..., 0] ** 2 + d[..., 1] ** 2      # noqa: E731
         a1, a2, a3, a4 = x[:, :, 0], x[:, :, 1], x[:, :, 2], x[:, :, 3]
         ka, kb, kc = v[:, 3], v[:, 4], v[:, 5]
@@ -294,28 +294,35 @@ class NeckSystem:
                                   + v[:, 11] * (a2[..., 1] + a4[..., 1]))
         return np.sum(springs - loads + weights, axis=1)
 
-    def _chords_batch(self, theta, s):
+    @staticmethod
+    def _chords_of(x, v):
         """(|A3(i) - A4(i)|^2 - rho(i+1)^2) / (2 rho(i+1)), i < N - 1: (batch, N - 1)."""
-        x = self.nodes(theta, s)
-        v = self.values(s)
         d = x[:, :-1, 2] - x[:, :-1, 3]
         rho = v[1:, 0]
         return (d[..., 0] ** 2 + d[..., 1] ** 2 - rho ** 2) / (2.0 * rho)
 
     def energy(self, theta, s):
-        return float(self._energy_batch(np.asarray(theta, dtype=float)[None], s)[0].real)
+        x = self.nodes(np.asarray(theta, dtype=float)[None], s)
+        return float(self._energy_of(x, self.values(s))[0])
 
     def constraints(self, theta, s):
-        return self._chords_batch(np.asarray(theta, dtype=float)[None], s)[0].real
+        return self._complex_step(theta, s)[2]
 
     def _complex_step(self, theta, s):
-        """(grad U, constraint Jacobian (N-1, 2N)) by complex steps."""
+        """(grad U, constraint Jacobian (N-1, 2N), constraints) by complex steps (the
+        real parts are the values to rounding); the last point's are kept."""
         theta = np.asarray(theta, dtype=float)
+        key = (theta.tobytes(), s)
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
         m = theta.size
         probe = theta[None, :] + 1j * self.COMPLEX_STEP * np.eye(m)
-        grad = self._energy_batch(probe, s).imag / self.COMPLEX_STEP
-        jac = self._chords_batch(probe, s).imag.T / self.COMPLEX_STEP
-        return grad, jac
+        x, v = self.nodes(probe, s), self.values(s)
+        chords = self._chords_of(x, v)
+        result = (self._energy_of(x, v).imag / self.COMPLEX_STEP,
+                  chords.imag.T / self.COMPLEX_STEP, chords[0].real.copy())
+        self._last = (key, result)
+        return result
 
     def gradient(self, theta, s):
         return self._complex_step(theta, s)[0]
@@ -324,7 +331,7 @@ class NeckSystem:
         return self._complex_step(theta, s)[1]
 
     def lagrangian_gradient(self, theta, mu, s):
-        grad, jac = self._complex_step(theta, s)
+        grad, jac, _ = self._complex_step(theta, s)
         return grad + jac.T @ mu
 
     def lagrangian_hessian(self, theta, mu, s):
@@ -352,13 +359,13 @@ class NeckSystem:
         return wrap(t).reshape(self.n, 2)
 
     def multipliers(self, theta, s):
-        grad, jac = self._complex_step(theta, s)
+        grad, jac, _ = self._complex_step(theta, s)
         if jac.shape[0] == 0:
             return np.zeros(0)
         return -np.linalg.lstsq(jac.T, grad, rcond=None)[0]
 
     def velocity(self, theta, s):
-        grad, jac = self._complex_step(theta, s)
+        grad, jac, _ = self._complex_step(theta, s)
         rate = self.rate(s)
         if jac.shape[0] == 0:
             return -grad / rate
@@ -381,7 +388,7 @@ class NeckSystem:
 
     def force(self, theta, s):
         """Projected |grad U| relative to the energy scale, plus the constraint violation."""
-        grad, jac = self._complex_step(theta, s)
+        grad, jac, _ = self._complex_step(theta, s)
         if jac.shape[0]:
             grad = grad - jac.T @ np.linalg.solve(jac @ jac.T, jac @ grad)
         violation = float(np.linalg.norm(self.constraints(theta, s)))
@@ -390,7 +397,7 @@ class NeckSystem:
     def _kkt(self, z, s):
         m = 2 * self.n
         theta, mu = z[:m], z[m:]
-        grad, jac = self._complex_step(theta, s)
+        grad, jac, _ = self._complex_step(theta, s)
         return np.concatenate([grad + jac.T @ mu, self.constraints(theta, s)]), jac
 
     def critical_point(self, theta, s, iterations=60):

@@ -57,6 +57,11 @@ LANDING_OFFSET = 1e-6
 JUMP_DISTANCE = 1e-5
 #: Push-off from a saddle along its unstable mode (rad).
 PUSH_OFF = 1e-7
+#: A flow is close to its rest point (see ``rest_certified``) when its force (relative
+#: to the energy scale) is below CLOSE_FORCE and Newton's minimum is within
+#: CLOSE_DISTANCE (rad, max norm).
+CLOSE_FORCE = 1e-5
+CLOSE_DISTANCE = 1e-3
 #: Absolute tolerance (rad) of a flow leg's integration (the rest point itself is then
 #: certified by Newton, so this only has to keep the flow in its basin).
 FLOW_ATOL = 1e-11
@@ -210,14 +215,13 @@ class ModuleSystem:
         """Ascending eigenvalues and modes (columns) of the Hessian."""
         return np.linalg.eigh(self.hessian(t, s))
 
-    def certified_rest(self, t, s):
+    def certified_rest(self, t, s, close=False):
         """The minimum the flow from t provably ends at, or None (see the module docstring)."""
         star, ok = self.critical_point(t, s)
         if not ok:
             return None
         low = np.linalg.eigvalsh(self.hessian(star, s))[0]
-        r = float(np.linalg.norm(star - t))
-        return star if low > 0 and (low > self.rate(s) * r or r <= rounding_radius(self, star, s)) else None
+        return star if rest_certified(self, t, s, star, low, self.rate(s), close) else None
 
     def on_saddle(self, t, s):
         return stalled_on_saddle(self, t, s)
@@ -439,7 +443,7 @@ class NeckSystem:
         values, vectors = np.linalg.eigh(r)
         return values, z @ vectors
 
-    def certified_rest(self, theta, s):
+    def certified_rest(self, theta, s, close=False):
         """KKT point next to theta with a positive definite reduced Hessian, close enough
         that the flow ends there: lambda_min > M |theta - theta*| with M a generous
         bound (4 N times the energy scale) on the third derivatives."""
@@ -447,9 +451,8 @@ class NeckSystem:
         if not ok:
             return None
         low = np.linalg.eigvalsh(self.reduced(star, s)[0])[0]
-        bound = 4.0 * self.n * self.rate(s)
-        r = float(np.linalg.norm(star - theta))
-        return star if low > 0 and (low > bound * r or r <= rounding_radius(self, star, s)) else None
+        return star if rest_certified(self, theta, s, star, low, 4.0 * self.n * self.rate(s),
+                                    close) else None
 
     def on_saddle(self, theta, s):
         return stalled_on_saddle(self, theta, s)
@@ -484,6 +487,28 @@ def rounding_radius(system, y, s):
     return 1e-14 * system.rate(s) / max(float(np.min(np.abs(values))), 1e-300)
 
 
+def rest_certified(system, y, s, star, low, bound, close=False):
+    """Whether the flow from y ends at the minimum star (lambda_min ``low`` > 0).
+
+    Proved when lambda_min > M |y - star| (``bound`` = M; the energy is then convex on
+    a ball around star holding y) or y is star to rounding.  Near a degenerate minimum
+    that ball is tiny and the flow relaxes slowly (time ~ 1 / lambda_min), so a flow
+    that has come close is also accepted: its force is small, star is within
+    ``CLOSE_DISTANCE``, lower in energy, and the flow heads for it (the velocity points
+    at star: off a saddle's side, or past a fold's ghost, it points elsewhere)."""
+    if low <= 0:
+        return False
+    r = float(np.linalg.norm(star - y))
+    if low > bound * r or r <= rounding_radius(system, star, s):
+        return True
+    if system.force(y, s) > CLOSE_FORCE or angle_distance(star, y) > CLOSE_DISTANCE:
+        return False
+    if system.energy(star, s) > system.energy(y, s) + 1e-13 * system.rate(s):
+        return False
+    v = system.velocity(y, s)
+    return float(v @ (star - y)) >= 0.9 * float(np.linalg.norm(v)) * r
+
+
 def stalled_on_saddle(system, y, s):
     """(saddle, unstable mode) if y lies on a saddle's stable set (numerically: no
     component along the unstable mode), where the flow would stall; else None."""
@@ -511,7 +536,7 @@ class Stalled(RuntimeError):
     """The flow stalled on a saddle's stable set and push-offs were not asked for."""
 
 
-def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
+def flow_to_rest(system, y0, s, push_offs=2, anchor=None, close=False) -> Rest:
     """Where the overdamped mechanism released at y0 (parameters frozen at s) comes to rest.
 
     Integrated in legs, each ending when the (relative) force has fallen tenfold or the
@@ -522,7 +547,7 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
     y = np.array(y0, dtype=float)
     chunk, elapsed = 1.0, 0.0
     for _ in range(MAX_LEGS):
-        star = system.certified_rest(y, s)
+        star = system.certified_rest(y, s, close)
         if star is not None:
             return Rest(star)
         stalled = system.on_saddle(y, s)
@@ -605,7 +630,7 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
         if path.steps > MAX_STEPS:
             raise NoRest(f'the reference gave up after {MAX_STEPS} steps, at s={s!r}')
         try:
-            rest = flow_to_rest(system, y, s_new, push_offs=0)
+            rest = flow_to_rest(system, y, s_new, push_offs=0, close=True)
         except Stalled:                 # the branch has become a saddle: a jump
             rest = None
         if rest is None:
@@ -661,14 +686,25 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
         # the step stalled on a saddle (a branch point) but the bisection ended within
         # rounding of it: the landing is taken a little further on
         rest_b = flow_to_rest(system, y_a, min(1.0, s_b + LANDING_OFFSET))
-    if angle_distance(rest_b.state, y_a) <= JUMP_DISTANCE or _continues(system, y_a, s_b,
-                                                                         rest_b.state):
+    if _continuous(system, y_a, s_b, rest_b.state):
         return s_b, rest_b.state          # continuous after all: where to step on from
     s_star, solved = critical_point_in(system, y_a, s_a, s_b)
     kind = classify(system, y_a, s_a)
     return ReferenceJump(s=s_star, s_before=s_a, s_after=s_b, departure=y_a,
                          landing=rest_b.state, kind=kind, solved=solved,
                          ambiguous=rest_b.ambiguous)
+
+
+def _continuous(system, y_a, s_b, landing):
+    """Whether the rest at s_b is the branch of y_a going on: within JUMP_DISTANCE, or
+    Newton from y_a continues to it, or it is the fold itself: close, with lambda_min ~ 0
+    (a bracket's end within ~1e-10 of a fold, where the gradient of the fold's ghost is
+    below the Newton tolerance; the next step finds the jump)."""
+    if angle_distance(landing, y_a) <= JUMP_DISTANCE or _continues(system, y_a, s_b, landing):
+        return True
+    values, _ = system.stability(landing, s_b)
+    return (angle_distance(landing, y_a) <= CLOSE_DISTANCE
+            and values[0] <= 1e-6 * abs(values[-1]))
 
 
 def _continues(system, y_a, s_b, landing):

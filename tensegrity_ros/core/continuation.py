@@ -32,6 +32,8 @@ from typing import Protocol
 import numpy as np
 from scipy.integrate import LSODA
 
+from .tolerances import DEFINITENESS_TOL
+
 FOLD = 'fold'
 BRANCH_POINT = 'branch_point'
 
@@ -76,8 +78,8 @@ class TrackerSettings:
     eigenvalue_shrink: float = 0.5
     #: Residual accepted as an equilibrium, relative to the stability scale.
     residual_tol: float = 1e-10
-    #: Positive definite means lambda_min > this * |lambda_max|.
-    definiteness_tol: float = 1e-9
+    #: Positive definite means lambda_min > this * |lambda_max| (see :mod:`.tolerances`).
+    definiteness_tol: float = DEFINITENESS_TOL
     #: Newton iterations per corrector.
     newton_iterations: int = 12
     #: Below this |psi . F_s| / |F_s| the critical point is a branch point.

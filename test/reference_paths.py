@@ -57,6 +57,14 @@ LANDING_OFFSET = 1e-6
 JUMP_DISTANCE = 1e-5
 #: Push-off from a saddle along its unstable mode (rad).
 PUSH_OFF = 1e-7
+#: A flow is close to its rest point (see ``rest_certified``) when its force (relative
+#: to the energy scale) is below CLOSE_FORCE and Newton's minimum is within
+#: CLOSE_DISTANCE (rad, max norm).
+CLOSE_FORCE = 1e-5
+CLOSE_DISTANCE = 1e-3
+#: Absolute tolerance (rad) of a flow leg's integration (the rest point itself is then
+#: certified by Newton, so this only has to keep the flow in its basin).
+FLOW_ATOL = 1e-11
 #: Longest flow (in units of the stiffest relaxation time) before the reference gives up.
 MAX_FLOW_TIME = 1e18
 #: Budgets: flow legs per rest, steps per path (the reference says so rather than hang).
@@ -145,9 +153,13 @@ class ModuleSystem:
         self.v0, self.g = values_of(start)
         v1, _ = values_of(start if end is None else end)
         self.dv = v1 - self.v0
+        self._last = None
 
     def point(self, s):
-        return Point.from_values(self.v0 + s * self.dv, self.g)
+        """The parameters at s (the last one kept: a flow evaluates one s many times)."""
+        if self._last is None or self._last[0] != s:
+            self._last = (s, Point.from_values(self.v0 + s * self.dv, self.g))
+        return self._last[1]
 
     def energy(self, t, s):
         return module_energy(self.point(s), t)
@@ -203,14 +215,13 @@ class ModuleSystem:
         """Ascending eigenvalues and modes (columns) of the Hessian."""
         return np.linalg.eigh(self.hessian(t, s))
 
-    def certified_rest(self, t, s):
+    def certified_rest(self, t, s, close=False):
         """The minimum the flow from t provably ends at, or None (see the module docstring)."""
         star, ok = self.critical_point(t, s)
         if not ok:
             return None
         low = np.linalg.eigvalsh(self.hessian(star, s))[0]
-        r = float(np.linalg.norm(star - t))
-        return star if low > 0 and (low > self.rate(s) * r or r <= rounding_radius(self, star, s)) else None
+        return star if rest_certified(self, t, s, star, low, self.rate(s), close) else None
 
     def on_saddle(self, t, s):
         return stalled_on_saddle(self, t, s)
@@ -248,6 +259,7 @@ class NeckSystem:
         self.v0 = np.array([v for v, _ in pairs])
         self.dv = np.array([values_of(m)[0] for m in end]) - self.v0
         self.n = len(start)
+        self._last = None
 
     def values(self, s):
         return self.v0 + s * self.dv
@@ -259,24 +271,23 @@ class NeckSystem:
         v = self.values(s)
         dtype = np.result_type(batch.dtype, float)
         out = np.zeros((batch.shape[0], self.n, 4, 2), dtype=dtype)
-        a1 = np.zeros((batch.shape[0], 2), dtype=dtype)
-        a2 = np.zeros((batch.shape[0], 2), dtype=dtype)
-        a2[:, 0] = v[0, 0]
+        a1x = a1y = a2y = np.zeros(batch.shape[0], dtype=dtype)
+        a2x = np.full(batch.shape[0], v[0, 0], dtype=dtype)
         for i in range(self.n):
-            d = a2 - a1
-            e = d / np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2)[:, None]
-            nrm = np.stack([-e[:, 1], e[:, 0]], axis=1)
-            t1, t2 = batch[:, i, 0][:, None], batch[:, i, 1][:, None]
+            dx, dy = a2x - a1x, a2y - a1y
+            norm = np.sqrt(dx * dx + dy * dy)
+            ex, ey = dx / norm, dy / norm             # base direction; its normal (-ey, ex)
+            c1, s1 = np.cos(batch[:, i, 0]), np.sin(batch[:, i, 0])
+            c2, s2 = np.cos(batch[:, i, 1]), np.sin(batch[:, i, 1])
             L1, L2 = v[i, 1], v[i, 2]
-            a3 = a1 + L1 * (np.cos(t1) * e + np.sin(t1) * nrm)
-            a4 = a2 + L2 * (-np.cos(t2) * e + np.sin(t2) * nrm)
-            out[:, i] = np.stack([a1, a2, a3, a4], axis=1)
-            a1, a2 = a4, a3
+            a3x, a3y = a1x + L1 * (c1 * ex - s1 * ey), a1y + L1 * (c1 * ey + s1 * ex)
+            a4x, a4y = a2x + L2 * (-c2 * ex - s2 * ey), a2y + L2 * (-c2 * ey + s2 * ex)
+            for k, (x, y) in enumerate(((a1x, a1y), (a2x, a2y), (a3x, a3y), (a4x, a4y))):
+                out[:, i, k, 0], out[:, i, k, 1] = x, y
+            a1x, a1y, a2x, a2y = a4x, a4y, a3x, a3y
         return out
 
-    def _energy_batch(self, theta, s):
-        x = self.nodes(theta, s)
-        v = self.values(s)
+    def _energy_of(self, x, v):
         sq = lambda d: d[..., 0] ** 2 + d[..., 1] ** 2      # noqa: E731
         a1, a2, a3, a4 = x[:, :, 0], x[:, :, 1], x[:, :, 2], x[:, :, 3]
         ka, kb, kc = v[:, 3], v[:, 4], v[:, 5]
@@ -287,28 +298,35 @@ class NeckSystem:
                                   + v[:, 11] * (a2[..., 1] + a4[..., 1]))
         return np.sum(springs - loads + weights, axis=1)
 
-    def _chords_batch(self, theta, s):
+    @staticmethod
+    def _chords_of(x, v):
         """(|A3(i) - A4(i)|^2 - rho(i+1)^2) / (2 rho(i+1)), i < N - 1: (batch, N - 1)."""
-        x = self.nodes(theta, s)
-        v = self.values(s)
         d = x[:, :-1, 2] - x[:, :-1, 3]
         rho = v[1:, 0]
         return (d[..., 0] ** 2 + d[..., 1] ** 2 - rho ** 2) / (2.0 * rho)
 
     def energy(self, theta, s):
-        return float(self._energy_batch(np.asarray(theta, dtype=float)[None], s)[0].real)
+        x = self.nodes(np.asarray(theta, dtype=float)[None], s)
+        return float(self._energy_of(x, self.values(s))[0])
 
     def constraints(self, theta, s):
-        return self._chords_batch(np.asarray(theta, dtype=float)[None], s)[0].real
+        return self._complex_step(theta, s)[2]
 
     def _complex_step(self, theta, s):
-        """(grad U, constraint Jacobian (N-1, 2N)) by complex steps."""
+        """(grad U, constraint Jacobian (N-1, 2N), constraints) by complex steps (the
+        real parts are the values to rounding); the last point's are kept."""
         theta = np.asarray(theta, dtype=float)
+        key = (theta.tobytes(), s)
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
         m = theta.size
         probe = theta[None, :] + 1j * self.COMPLEX_STEP * np.eye(m)
-        grad = self._energy_batch(probe, s).imag / self.COMPLEX_STEP
-        jac = self._chords_batch(probe, s).imag.T / self.COMPLEX_STEP
-        return grad, jac
+        x, v = self.nodes(probe, s), self.values(s)
+        chords = self._chords_of(x, v)
+        result = (self._energy_of(x, v).imag / self.COMPLEX_STEP,
+                  chords.imag.T / self.COMPLEX_STEP, chords[0].real.copy())
+        self._last = (key, result)
+        return result
 
     def gradient(self, theta, s):
         return self._complex_step(theta, s)[0]
@@ -317,7 +335,7 @@ class NeckSystem:
         return self._complex_step(theta, s)[1]
 
     def lagrangian_gradient(self, theta, mu, s):
-        grad, jac = self._complex_step(theta, s)
+        grad, jac, _ = self._complex_step(theta, s)
         return grad + jac.T @ mu
 
     def lagrangian_hessian(self, theta, mu, s):
@@ -345,13 +363,13 @@ class NeckSystem:
         return wrap(t).reshape(self.n, 2)
 
     def multipliers(self, theta, s):
-        grad, jac = self._complex_step(theta, s)
+        grad, jac, _ = self._complex_step(theta, s)
         if jac.shape[0] == 0:
             return np.zeros(0)
         return -np.linalg.lstsq(jac.T, grad, rcond=None)[0]
 
     def velocity(self, theta, s):
-        grad, jac = self._complex_step(theta, s)
+        grad, jac, _ = self._complex_step(theta, s)
         rate = self.rate(s)
         if jac.shape[0] == 0:
             return -grad / rate
@@ -374,7 +392,7 @@ class NeckSystem:
 
     def force(self, theta, s):
         """Projected |grad U| relative to the energy scale, plus the constraint violation."""
-        grad, jac = self._complex_step(theta, s)
+        grad, jac, _ = self._complex_step(theta, s)
         if jac.shape[0]:
             grad = grad - jac.T @ np.linalg.solve(jac @ jac.T, jac @ grad)
         violation = float(np.linalg.norm(self.constraints(theta, s)))
@@ -383,7 +401,7 @@ class NeckSystem:
     def _kkt(self, z, s):
         m = 2 * self.n
         theta, mu = z[:m], z[m:]
-        grad, jac = self._complex_step(theta, s)
+        grad, jac, _ = self._complex_step(theta, s)
         return np.concatenate([grad + jac.T @ mu, self.constraints(theta, s)]), jac
 
     def critical_point(self, theta, s, iterations=60):
@@ -425,7 +443,7 @@ class NeckSystem:
         values, vectors = np.linalg.eigh(r)
         return values, z @ vectors
 
-    def certified_rest(self, theta, s):
+    def certified_rest(self, theta, s, close=False):
         """KKT point next to theta with a positive definite reduced Hessian, close enough
         that the flow ends there: lambda_min > M |theta - theta*| with M a generous
         bound (4 N times the energy scale) on the third derivatives."""
@@ -433,9 +451,8 @@ class NeckSystem:
         if not ok:
             return None
         low = np.linalg.eigvalsh(self.reduced(star, s)[0])[0]
-        bound = 4.0 * self.n * self.rate(s)
-        r = float(np.linalg.norm(star - theta))
-        return star if low > 0 and (low > bound * r or r <= rounding_radius(self, star, s)) else None
+        return star if rest_certified(self, theta, s, star, low, 4.0 * self.n * self.rate(s),
+                                    close) else None
 
     def on_saddle(self, theta, s):
         return stalled_on_saddle(self, theta, s)
@@ -470,6 +487,28 @@ def rounding_radius(system, y, s):
     return 1e-14 * system.rate(s) / max(float(np.min(np.abs(values))), 1e-300)
 
 
+def rest_certified(system, y, s, star, low, bound, close=False):
+    """Whether the flow from y ends at the minimum star (lambda_min ``low`` > 0).
+
+    Proved when lambda_min > M |y - star| (``bound`` = M; the energy is then convex on
+    a ball around star holding y) or y is star to rounding.  Near a degenerate minimum
+    that ball is tiny and the flow relaxes slowly (time ~ 1 / lambda_min), so a flow
+    that has come close is also accepted: its force is small, star is within
+    ``CLOSE_DISTANCE``, lower in energy, and the flow heads for it (the velocity points
+    at star: off a saddle's side, or past a fold's ghost, it points elsewhere)."""
+    if low <= 0:
+        return False
+    r = float(np.linalg.norm(star - y))
+    if low > bound * r or r <= rounding_radius(system, star, s):
+        return True
+    if system.force(y, s) > CLOSE_FORCE or angle_distance(star, y) > CLOSE_DISTANCE:
+        return False
+    if system.energy(star, s) > system.energy(y, s) + 1e-13 * system.rate(s):
+        return False
+    v = system.velocity(y, s)
+    return float(v @ (star - y)) >= 0.9 * float(np.linalg.norm(v)) * r
+
+
 def stalled_on_saddle(system, y, s):
     """(saddle, unstable mode) if y lies on a saddle's stable set (numerically: no
     component along the unstable mode), where the flow would stall; else None."""
@@ -497,7 +536,7 @@ class Stalled(RuntimeError):
     """The flow stalled on a saddle's stable set and push-offs were not asked for."""
 
 
-def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
+def flow_to_rest(system, y0, s, push_offs=2, anchor=None, close=False) -> Rest:
     """Where the overdamped mechanism released at y0 (parameters frozen at s) comes to rest.
 
     Integrated in legs, each ending when the (relative) force has fallen tenfold or the
@@ -508,7 +547,7 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
     y = np.array(y0, dtype=float)
     chunk, elapsed = 1.0, 0.0
     for _ in range(MAX_LEGS):
-        star = system.certified_rest(y, s)
+        star = system.certified_rest(y, s, close)
         if star is not None:
             return Rest(star)
         stalled = system.on_saddle(y, s)
@@ -527,7 +566,10 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None) -> Rest:
         if elapsed > MAX_FLOW_TIME:
             raise NoRest(f'no certified rest at s={s!r} from {y0} after t={elapsed:g}')
         base = y if anchor is None else anchor
-        atol = 1e-14 if anchor is None else 1e-10 * float(np.max(np.abs(y - anchor)))
+        # tolerances relative to the state (rad), or to the motion off a saddle: the
+        # displacement of a leg is ~0 at its start, so an absolute 1e-14 on it would
+        # cap the steps through a fold's ghost (flows of ~1e9 relaxation times)
+        atol = FLOW_ATOL if anchor is None else 1e-10 * float(np.max(np.abs(y - anchor)))
         anchor = None
         weaker = lambda _, x: system.force(base + x, s) - target      # noqa: E731
         weaker.terminal, weaker.direction = True, -1
@@ -588,7 +630,7 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
         if path.steps > MAX_STEPS:
             raise NoRest(f'the reference gave up after {MAX_STEPS} steps, at s={s!r}')
         try:
-            rest = flow_to_rest(system, y, s_new, push_offs=0)
+            rest = flow_to_rest(system, y, s_new, push_offs=0, close=True)
         except Stalled:                 # the branch has become a saddle: a jump
             rest = None
         if rest is None:
@@ -644,13 +686,35 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
         # the step stalled on a saddle (a branch point) but the bisection ended within
         # rounding of it: the landing is taken a little further on
         rest_b = flow_to_rest(system, y_a, min(1.0, s_b + LANDING_OFFSET))
-    if angle_distance(rest_b.state, y_a) <= JUMP_DISTANCE:
+    if _continuous(system, y_a, s_b, rest_b.state):
         return s_b, rest_b.state          # continuous after all: where to step on from
     s_star, solved = critical_point_in(system, y_a, s_a, s_b)
     kind = classify(system, y_a, s_a)
     return ReferenceJump(s=s_star, s_before=s_a, s_after=s_b, departure=y_a,
                          landing=rest_b.state, kind=kind, solved=solved,
                          ambiguous=rest_b.ambiguous)
+
+
+def _continuous(system, y_a, s_b, landing):
+    """Whether the rest at s_b is the branch of y_a going on: within JUMP_DISTANCE, or
+    Newton from y_a continues to it, or it is the fold itself: close, with lambda_min ~ 0
+    (a bracket's end within ~1e-10 of a fold, where the gradient of the fold's ghost is
+    below the Newton tolerance; the next step finds the jump)."""
+    if angle_distance(landing, y_a) <= JUMP_DISTANCE or _continues(system, y_a, s_b, landing):
+        return True
+    values, _ = system.stability(landing, s_b)
+    return (angle_distance(landing, y_a) <= CLOSE_DISTANCE
+            and values[0] <= 1e-6 * abs(values[-1]))
+
+
+def _continues(system, y_a, s_b, landing):
+    """Whether ``landing`` is the minimum y_a continues to at s_b: Newton from y_a ends on
+    a stable point that is the landing (modulo 2 pi).  Next to a fold the branch moves
+    like sqrt(s* - s), ~1e-5 rad over a bisection bracket, more than any fixed
+    "same state" distance that still tells a small jump from no jump."""
+    star, ok = system.critical_point(y_a, s_b)
+    return bool(ok and system.stability(star, s_b)[0][0] > 0
+                and angle_distance(star, landing) <= 1e-9)
 
 
 def _nearby_minimum(system, y_a, s_m, y_b):
@@ -664,7 +728,8 @@ def _nearby_minimum(system, y_a, s_m, y_b):
         return None
     if y_b is not None and angle_distance(star, y_a) >= angle_distance(star, y_b):
         return None
-    return star if system.energy(star, s_m) <= system.energy(y_a, s_m) else None
+    slack = 1e-13 * system.rate(s_m)     # energies differ by ~lambda d^2 ~ rounding here
+    return star if system.energy(star, s_m) <= system.energy(y_a, s_m) + slack else None
 
 
 def critical_point_in(system, y_a, s_a, s_b, slack=1e-10):

@@ -210,3 +210,25 @@ def test_tracker_is_generic_over_the_problem_dimension():
 def test_tracker_refuses_an_unstable_start():
     with pytest.raises(TrackingError):
         track(Cusp(2), np.array([0.0, 0.0]))          # y0 = 0 is a maximum at s = 0.5 ... and not an equilibrium at s = 0
+
+
+# -- the tracker's definiteness and a tracked neck state's "stable" agree (issue 10) ------
+
+from hypothesis import given, settings as hyp_settings, strategies as st  # noqa: E402
+
+from tensegrity_ros.core.continuation import TrackerSettings, positive_definite  # noqa: E402
+from tensegrity_ros.core.stack import StackEquilibrium  # noqa: E402
+
+
+@hyp_settings(max_examples=300, deadline=None, derandomize=True)
+@given(high=st.floats(1e-30, 1e30), decades=st.floats(0.0, 12.0),
+       softer=st.floats(1e-3, 1.0))
+def test_a_neck_state_the_tracker_accepts_reads_back_stable(high, decades, softer):
+    """lambda_min = lambda_max / 10^decades; the tracker's scale is the start's
+    lambda_max, down to 1000 times larger than the local one (see core/tolerances.py
+    for why one module's classification of solver roots uses 1e-8 instead)."""
+    eigenvalues = np.array([high * 10.0 ** -decades, high])
+    if positive_definite(eigenvalues, high / softer, TrackerSettings()):
+        stack_state = StackEquilibrium.__new__(StackEquilibrium)
+        object.__setattr__(stack_state, 'eigenvalues', eigenvalues)
+        assert stack_state.stable

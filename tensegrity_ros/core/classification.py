@@ -13,9 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .module import ModuleParams
-
-#: An eigenvalue with |lambda| <= DEGENERACY_TOL * max|lambda| counts as zero.
-DEGENERACY_TOL = 1e-8
+from .tolerances import DEGENERACY_TOL      # (re-exported: equilibria, batch_solver)
 
 KIND_MINIMUM = 'minimum'
 KIND_SADDLE = 'saddle'

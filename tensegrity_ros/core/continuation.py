@@ -33,6 +33,7 @@ import numpy as np
 from scipy.integrate import LSODA
 
 from .bounded_work import checkpoint
+from .tolerances import DEFINITENESS_TOL
 
 FOLD = 'fold'
 BRANCH_POINT = 'branch_point'
@@ -78,8 +79,8 @@ class TrackerSettings:
     eigenvalue_shrink: float = 0.5
     #: Residual accepted as an equilibrium, relative to the stability scale.
     residual_tol: float = 1e-10
-    #: Positive definite means lambda_min > this * |lambda_max|.
-    definiteness_tol: float = 1e-9
+    #: Positive definite means lambda_min > this * |lambda_max| (see :mod:`.tolerances`).
+    definiteness_tol: float = DEFINITENESS_TOL
     #: Newton iterations per corrector.
     newton_iterations: int = 12
     #: Below this |psi . F_s| / |F_s| the critical point is a branch point.
@@ -293,6 +294,10 @@ class _Tracker:
         polished = self.newton(y, s)
         if polished is None and not self.residual_ok(y, s):   # a verified start near a
             raise TrackingError('the start state is not an equilibrium')   # singular point
+        if polished is not None and self.step_norm(polished - y) > cfg.passage_radius:
+            # Newton from a rough guess may converge to a minimum whose basin does not
+            # hold the guess: where the mechanism comes to rest is settle()'s to decide
+            raise TrackingError('the start state is not an equilibrium')
         y = y if polished is None else polished
         eigenvalues = self.eigenvalues(y, s)
         if not self.definite(eigenvalues):
@@ -327,6 +332,8 @@ class _Tracker:
                 found = self.crossing_on_path(y, s, tangent, s + ds)
             if found is None:           # rejected, or no crossing on the natural path
                 arc = self.arc_step(y, s, tangent, ds)
+                if arc is not None and arc[0] == 'regular' and arc[2] > s_end:
+                    arc = self.back_to_end(*arc[1:3], s_end)
                 if arc is not None and arc[0] == 'regular':
                     _, y1, s1, eig1 = arc
                     self.last_rate = (eig1[0] - eigenvalues[0]) / (s1 - s)
@@ -352,6 +359,19 @@ class _Tracker:
                                    f'step size underflow at s={s!r} ({reason})')
             ds *= 0.25 if reason == 'indefinite' else 0.5
         return self.result(y, s, eigenvalues, events)
+
+    def back_to_end(self, y1, s1, s_end):
+        """An arclength step that went past the end of the command, brought back to it
+        (a natural step back on the regular branch): ('regular', y, s_end, eigenvalues),
+        or ``None`` (the step is then refused and retried shorter)."""
+        try:
+            y = self.newton(y1 + (s_end - s1) * self.tangent(y1, s1), s_end)
+        except np.linalg.LinAlgError:
+            return None
+        if y is None or self.step_norm(y - y1) > self.settings.max_state_step:
+            return None
+        eigenvalues = self.eigenvalues(y, s_end)
+        return ('regular', y, s_end, eigenvalues) if self.definite(eigenvalues) else None
 
     def rescale(self, eigenvalues):
         """Tolerances follow the stiffness scale: the start's, or the local one where
@@ -539,8 +559,23 @@ class _Tracker:
             landing, s_land = back.state, s_end
         if event is None:
             return landing, s_land, None
-        return landing, s_land, Event(kind=kind, s=s_star, state=y_star, landing_s=s_land,
-                                      landing=landing, ambiguous=ambiguous)
+        at_event, s_at = self.landing_at_event(landing, s_land, s_star)
+        return landing, s_land, Event(kind=kind, s=s_star, state=y_star, landing_s=s_at,
+                                      landing=at_event, ambiguous=ambiguous)
+
+    def landing_at_event(self, landing, s_land, s_star):
+        """The landing's stable equilibrium at the event's own s: (state, s).
+
+        The mechanism lands with the parameters frozen a little past s*, so the
+        landed minimum is followed back to s* (Newton; the landing branch is regular
+        there), so that a reported jump goes from and to equilibria at one parameter
+        value.  Tracking goes on from the frozen landing.  If the minimum does not
+        persist back to s* the frozen landing is reported with its own s."""
+        back = self.newton(landing, s_star)
+        if (back is not None and self.separation(back, landing) < self.settings.max_state_step
+                and self.definite(self.eigenvalues(back, s_star))):
+            return back, s_star
+        return landing, s_land
 
     def continuous(self, kind, s_star, y_star, s_land, landing):
         """Whether the landing is the tracked minimum going on rather than a jump.

@@ -1,0 +1,24 @@
+"""The tolerances for "positive definite", named in one place and why they differ.
+
+A state is a minimum only if lambda_min > tol * |lambda_max|, with two values of tol:
+
+* ``DEFINITENESS_TOL`` (1e-9): the tracker's acceptance test
+  (:func:`.continuation.positive_definite`) and a neck state's
+  :attr:`.stack.StackEquilibrium.stable`.  Tracked states are Newton-converged to
+  rounding, and near a branch point with a 1e-9 asymmetry the stable branch's
+  lambda_min / lambda_max dips to ~3e-9 (test_stack_imperfect: with 1e-8 the
+  tracker stops there, "step size underflow").
+* ``DEGENERACY_TOL`` (1e-8): the classification of every equilibrium of a module
+  (:func:`.classification.classify`, :attr:`.classification.Equilibrium.stable`), whose
+  roots come from the polynomial solver and are only that accurate (test_degenerate:
+  with 1e-9 states on a fold classify as minima).
+
+So a one-module state that the tracker verified with 1e-9 < lambda_min / lambda_max
+<= 1e-8 (within ~1e-16 in s of a fold) reads back as 'degenerate', not 'stable'.
+"""
+
+#: The tracker's (and a tracked neck state's) definiteness: lambda_min > this * |lambda_max|.
+DEFINITENESS_TOL = 1e-9
+#: An eigenvalue with |lambda| <= DEGENERACY_TOL * max|lambda| counts as zero in the
+#: classification of solver roots.
+DEGENERACY_TOL = 1e-8

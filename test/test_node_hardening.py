@@ -265,9 +265,12 @@ def test_burst_of_fold_crossing_commands_is_processed_or_counted(harness):
         sender.join()
     assert accounted() == count
     assert h.counter('rejected_total') == 0
-    assert h.counter('commands_processed') >= 1 and h.jumps
+    assert h.counter('commands_processed') >= 1
     h.spin_until(lambda: abs(h.state()[1] - end.theta1) < 1e-9, what='the last force tracked')
     assert h.state()[2] == pytest.approx(end.theta2, abs=1e-9)
+    # every jump the node counted is on the topic (how many there are depends on how many
+    # forces a loaded machine coalesced: 299 of 300 were once, and that path has none)
+    h.spin_until(lambda: len(h.jumps) == h.counter('jumps_total'), what='every jump published')
 
 
 # ---------------------------------------------------------------------------

@@ -32,9 +32,10 @@ paths, each against a reference path, in ~6 min on the shared 2-core machine):
   necks: N = 2 random 5 paths, N = 3 random 2 paths; hypothesis properties: 25 random
   modules and 13 random N = 2 necks (jump landings checked by the reference's Newton).
   About 40 of the module paths hold a jump.
-Not run: the N = 3 nearly symmetric neck (m0 ka = 100.0000001, head load 0 -> -40 N):
-its reference still needs > 15 min (a near-pitchfork buckling: each flow relaxes at
-the soft mode's rate; see the report of issue 10).
+Not run: the N = 3 nearly symmetric neck (m0 ka = 100.0000001, head load 0 -> -40 N).
+Its reference now passes the near-pitchfork buckling (s ~ 0.1713) in ~60 s, but one
+flow just before the tracker's fold (s = 0.29213, tracker: fold at 0.2921059, module 0
+landing at -pi/2) ran 540 s: the slow passage of a fold's ghost next to a linkage limit.
 """
 import math
 

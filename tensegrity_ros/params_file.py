@@ -135,12 +135,25 @@ def _select_node(path, doc, node):
                       f'choose one with --node')
 
 
+def _loader():
+    """PyYAML's safe loader that also reads ``!!python/tuple`` as a list: launch_ros
+    writes a launch file's parameter dictionary with ``yaml.dump`` after turning its
+    lists into tuples, and rcl reads such a file (it ignores the tag)."""
+    import yaml
+
+    class ParameterFileLoader(yaml.SafeLoader):
+        pass
+    ParameterFileLoader.add_constructor('tag:yaml.org,2002:python/tuple',
+                                        ParameterFileLoader.construct_sequence)
+    return ParameterFileLoader
+
+
 def _read_yaml(path):
     """The YAML document of ``path``; :class:`ConfigError` (one line) if unreadable or invalid."""
     import yaml
     try:
         with open(path, encoding='utf-8') as f:
-            return yaml.safe_load(f)
+            return yaml.load(f, Loader=_loader())     # safe: only the tuple tag is added
     except OSError as exc:
         raise ConfigError(f'cannot read {path}: {exc.strerror or exc}') from None
     except yaml.YAMLError as exc:

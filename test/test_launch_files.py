@@ -76,6 +76,22 @@ sys.exit(service.run())
 
 
 @pytest.mark.ros
+def test_a_parameter_file_as_launch_ros_writes_it_is_read(tmp_path):
+    """launch_ros writes a launch file's parameter dictionary with ``yaml.dump`` after
+    turning lists into tuples (``!!python/tuple``); rcl reads that, so the node's own
+    check must too (it refused it: "could not determine a constructor", exit 2)."""
+    import yaml
+    from tensegrity_ros.params_file import check_parameter_file, load_stack_config
+    path = tmp_path / 'launch_params.yaml'
+    path.write_text(yaml.dump({'/**': {'ros__parameters': {
+        'modules': ('m0', 'm1'), 'm0.force_a3': (0.0, -1.0), 'm1.rho_initial': 0.8}}}))
+    assert '!!python/tuple' in path.read_text()
+    check_parameter_file(str(path))
+    config = load_stack_config(str(path))
+    assert [m.name for m in config.modules] == ['m0', 'm1']
+    assert (config.modules[0].params.f3x, config.modules[0].params.f3y) == (0.0, -1.0)
+
+
 def test_installed_neck_launch_file_starts_the_node_with_every_argument():
     pytest.importorskip('launch_ros', reason='no launch_ros here (not in requirements.txt): this '
                         'test runs under colcon test in a ROS environment (README, Development)')

@@ -638,18 +638,20 @@ class TensegrityNode(Node):
                                         throttle_duration_sec=WARN_THROTTLE_SEC)
 
     def _report_tracking_failure(self, failure):
-        self._counters['tracking_failures'] += 1
-        self._level_events.add('tracking')
-        self._throttled('tracking').warning(
-            f'{self._names[failure.module]}: tracking failed ({failure.text}); holding the '
-            f'last verified equilibrium', throttle_duration_sec=WARN_THROTTLE_SEC)
+        self._count_and_warn('tracking_failures', 'tracking',
+                             f'{self._names[failure.module]}: tracking failed ({failure.text}); '
+                             f'holding the last verified equilibrium')
 
     def _report_deferred(self, deferred):
-        self._counters['commands_deferred'] += 1
-        self._level_events.add('deferred')
-        self._throttled('deferred').warning(
-            f'{self._names[deferred.module]}: {deferred.cause}: {deferred.text}; holding the '
-            f'last verified equilibrium meanwhile', throttle_duration_sec=WARN_THROTTLE_SEC)
+        self._count_and_warn('commands_deferred', 'deferred',
+                             f'{self._names[deferred.module]}: {deferred.cause}: '
+                             f'{deferred.text}; holding the last verified equilibrium meanwhile')
+
+    def _count_and_warn(self, counter, event, text):
+        """Count an event in diagnostics, raise the node status to WARN, log it throttled."""
+        self._counters[counter] += 1
+        self._level_events.add(event)
+        self._throttled(event).warning(text, throttle_duration_sec=WARN_THROTTLE_SEC)
 
     def _report_jump_ahead(self, warning):
         self._counters['jump_warnings'] += 1

@@ -62,6 +62,11 @@ PUSH_OFF = 1e-7
 #: CLOSE_DISTANCE (rad, max norm).
 CLOSE_FORCE = 1e-5
 CLOSE_DISTANCE = 1e-3
+#: A flow leg stops when a chord constraint's gradient falls below this (relative to a
+#: rod length): a module close to a change point of its linkage (see
+#: ``NeckSystem.change_point_branches``); the flow is pushed this far (rad) past it.
+CHANGE_POINT_GRADIENT = 1e-2
+CHANGE_POINT_PUSH = 1e-4
 #: Absolute tolerance (rad) of a flow leg's integration (the rest point itself is then
 #: certified by Newton, so this only has to keep the flow in its basin).
 FLOW_ATOL = 1e-11
@@ -233,6 +238,13 @@ class ModuleSystem:
         return np.concatenate([self.gradient(t, s) / scale,
                                [np.linalg.det(self.hessian(t, s)) / scale ** 2]])
 
+    def singular_chord(self, t, s):
+        """One module has no chord constraint (see :meth:`NeckSystem.singular_chord`)."""
+        return 1.0
+
+    def change_point_branches(self, t, s):
+        return None
+
     def is_stable_equilibrium(self, t, s, tol=1e-8):
         """Gradient ~ 0 (relative) and Hessian positive definite, by this reference."""
         scale = self.rate(s)
@@ -339,11 +351,17 @@ class NeckSystem:
         return grad + jac.T @ mu
 
     def lagrangian_hessian(self, theta, mu, s):
+        """Central differences (step FD_STEP) of the complex-step Lagrangian gradient, all
+        2 x 2N x 2N probes in one batch through the forward kinematics."""
         theta = np.asarray(theta, dtype=float)
         m, h = theta.size, self.FD_STEP
-        cols = [(self.lagrangian_gradient(theta + h * e, mu, s)
-                 - self.lagrangian_gradient(theta - h * e, mu, s)) / (2 * h) for e in np.eye(m)]
-        w = np.array(cols).T
+        shifts = np.concatenate([h * np.eye(m), -h * np.eye(m)])           # (2m, m)
+        probe = (theta + shifts)[:, None, :] + 1j * self.COMPLEX_STEP * np.eye(m)[None]
+        x, v = self.nodes(probe.reshape(-1, m), s), self.values(s)
+        grads = (self._energy_of(x, v).imag / self.COMPLEX_STEP).reshape(2 * m, m)
+        chords = (self._chords_of(x, v).imag / self.COMPLEX_STEP).reshape(2 * m, m, -1)
+        lagrangian = grads + chords @ np.asarray(mu, dtype=float)
+        w = (lagrangian[:m] - lagrangian[m:]) / (2 * h)
         return 0.5 * (w + w.T)
 
     def rate(self, s):
@@ -467,6 +485,75 @@ class NeckSystem:
         det = np.linalg.det(r / scale)
         return np.concatenate([f[:m] / scale, f[m:], [det]])
 
+    def singular_chord(self, theta, s):
+        """The smallest chord-constraint gradient norm over a length: ~0 where a module
+        lies flat at a change point of its linkage (see :meth:`change_point_branches`)."""
+        jac = self.constraint_jacobian(theta, s)
+        if jac.shape[0] == 0:
+            return 1.0
+        length = float(np.max(self.values(s)[:, 1:3]))
+        return float(np.min(np.linalg.norm(jac, axis=1))) / length
+
+    def _module_chord(self, i, angles, s):
+        """Module i's chord constraint as a function of its own two angles only (the
+        chord is in the module's own frame: its base and its rods)."""
+        theta = np.zeros(2 * self.n)
+        theta[2 * i:2 * i + 2] = angles
+        return self.constraints(theta, s)[i]
+
+    def change_point_branches(self, theta, s, push=CHANGE_POINT_PUSH):
+        """(crossing, [states]) where module i lies flat at a change point of its linkage.
+
+        With equal rods and equal chords a module is a parallelogram linkage: flat, its
+        chord constraint has a zero gradient and its solution set crosses itself (the
+        parallelogram and the anti-parallelogram modes, like a four-bar's change point).
+        The constrained flow stalls there (the projection on the constraints is undefined).
+        The mechanism goes on along one of the four half-branches leaving the crossing:
+        returned as states ``push`` rad out along each, put back on the constraint by a
+        Newton step along its gradient.  None if no module is at a crossing."""
+        theta = np.asarray(theta, dtype=float)
+        jac = self.constraint_jacobian(theta, s)
+        if jac.shape[0] == 0:
+            return None
+        i = int(np.argmin(np.linalg.norm(jac, axis=1)))
+        chord = lambda a: self._module_chord(i, a, s)              # noqa: E731
+        h = 1e-5
+
+        def gradient(a):
+            return np.array([(chord(a + h * e) - chord(a - h * e)) / (2 * h) for e in np.eye(2)])
+
+        def hessian(a):
+            cols = [(gradient(a + h * e) - gradient(a - h * e)) / (2 * h) for e in np.eye(2)]
+            w = np.array(cols)
+            return 0.5 * (w + w.T)
+
+        with np.errstate(all='ignore'):
+            sol = root(gradient, theta[2 * i:2 * i + 2], tol=1e-13)
+        length = float(np.max(self.values(s)[:, 1:3]))
+        # (the solver's own success flag is not asked: near the root the difference
+        # quotients are rounding-limited; the residuals below are what counts)
+        if np.max(np.abs(gradient(sol.x))) > 1e-7 * length or abs(chord(sol.x)) > 1e-9 * length \
+                or angle_distance(sol.x, theta[2 * i:2 * i + 2]) > 0.1:
+            return None
+        values, vectors = np.linalg.eigh(hessian(sol.x))
+        if values[0] >= 0 or values[1] <= 0:
+            return None
+        crossing = theta.copy()
+        crossing[2 * i:2 * i + 2] = sol.x
+        states = []
+        for sign in (1.0, -1.0):
+            direction = math.sqrt(values[1]) * vectors[:, 0] + sign * math.sqrt(-values[0]) * vectors[:, 1]
+            direction /= np.linalg.norm(direction)
+            for way in (1.0, -1.0):
+                a = sol.x + way * push * direction
+                for _ in range(5):          # back onto the chord constraint
+                    g = gradient(a)
+                    a = a - chord(a) * g / float(g @ g)
+                state = crossing.copy()
+                state[2 * i:2 * i + 2] = a
+                states.append(state)
+        return crossing, states
+
     def is_stable_equilibrium(self, theta, s, tol=1e-8):
         theta = np.asarray(theta, dtype=float).ravel()
         mu = self.multipliers(theta, s)
@@ -530,6 +617,8 @@ class NoRest(RuntimeError):
 class Rest:
     state: np.ndarray
     ambiguous: bool = False
+    #: Where the other ways out of a saddle or a change point land (lower energy wins).
+    alternatives: list = field(default_factory=list)
 
 
 class Stalled(RuntimeError):
@@ -573,14 +662,38 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None, close=False) -> Rest:
         anchor = None
         weaker = lambda _, x: system.force(base + x, s) - target      # noqa: E731
         weaker.terminal, weaker.direction = True, -1
+        flat = lambda _, x: system.singular_chord(base + x, s) - CHANGE_POINT_GRADIENT  # noqa
+        flat.terminal, flat.direction = True, -1
         sol = solve_ivp(lambda _, x: system.velocity(base + x, s), (0.0, chunk), y - base,
-                        method='LSODA', rtol=1e-10, atol=atol, events=weaker,
+                        method='LSODA', rtol=1e-10, atol=atol, events=(weaker, flat),
                         jac=lambda _, x: system.velocity_jacobian(base + x, s))
         y = base + sol.y[:, -1]
         elapsed += float(sol.t[-1])
+        if sol.status == 1 and sol.t_events[1].size:
+            passed = _through_change_point(system, y, s, push_offs)
+            if passed is not None:
+                return passed
         if sol.status != 1:
             chunk *= 4.0
     raise NoRest(f'no certified rest at s={s!r} from {y0} within {MAX_LEGS} legs')
+
+
+def _through_change_point(system, y, s, push_offs):
+    """The flow reached a module's change point: it goes on along the half-branches on
+    which the mechanism moves away from the crossing (the velocity there points out);
+    the lower-energy landing wins, a disagreement is recorded as ``ambiguous``.  None
+    if y is not at a crossing (a sharply curving branch next to one: flow on)."""
+    found = system.change_point_branches(y, s)
+    if found is None:
+        return None
+    crossing, states = found
+    leaving = [x for x in states if float(system.velocity(x, s) @ (x - crossing)) > 0]
+    if not leaving:
+        raise NoRest(f'the flow rests on a change point at s={s!r} (not certified)')
+    landings = [flow_to_rest(system, x, s, push_offs) for x in leaving]
+    best = min(landings, key=lambda r: system.energy(r.state, s))
+    others = [r.state for r in landings if angle_distance(r.state, best.state) > 1e-6]
+    return Rest(best.state, bool(others) or any(r.ambiguous for r in landings), others)
 
 
 def _push_off(system, star, mode, s, push_offs):
@@ -609,6 +722,7 @@ class ReferenceJump:
     kind: str                 # 'fold' (the critical mode meets dG/ds) or 'branch_point'
     solved: bool              # s comes from the critical-point solve
     ambiguous: bool = False
+    alternatives: list = field(default_factory=list)    # other landings (see Rest)
 
 
 @dataclass
@@ -692,7 +806,7 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
     kind = classify(system, y_a, s_a)
     return ReferenceJump(s=s_star, s_before=s_a, s_after=s_b, departure=y_a,
                          landing=rest_b.state, kind=kind, solved=solved,
-                         ambiguous=rest_b.ambiguous)
+                         ambiguous=rest_b.ambiguous, alternatives=rest_b.alternatives)
 
 
 def _continuous(system, y_a, s_b, landing):

@@ -32,10 +32,14 @@ paths, each against a reference path, in ~6 min on the shared 2-core machine):
   necks: N = 2 random 5 paths, N = 3 random 2 paths; hypothesis properties: 25 random
   modules and 13 random N = 2 necks (jump landings checked by the reference's Newton).
   About 40 of the module paths hold a jump.
-Not run: the N = 3 nearly symmetric neck (m0 ka = 100.0000001, head load 0 -> -40 N).
-Its reference now passes the near-pitchfork buckling (s ~ 0.1713) in ~60 s, but one
-flow just before the tracker's fold (s = 0.29213, tracker: fold at 0.2921059, module 0
-landing at -pi/2) ran 540 s: the slow passage of a fold's ghost next to a linkage limit.
+The N = 3 nearly symmetric neck (m0 ka = 100.0000001, head load 0 -> -40 N): its
+reference ran > 540 s in one flow (module 0 stuck at its flat change point: equal rods
+and chords make it a parallelogram linkage, the chord constraint's gradient vanishes
+and the projected flow stalls, cond(J J^T) ~ 1e17).  It now passes the change point
+explicitly (reference_paths.NeckSystem.change_point_branches) and runs in ~40-60 s: the
+fold is confirmed (tracker 0.2921059139, reference 0.2921059139-0.2921059142); past
+it two branches leave the change point downhill, and the tracker lands on the higher-
+energy one (module 0 at (-pi/2, -pi/2)), the reference's alternative.
 """
 import math
 
@@ -414,3 +418,49 @@ def test_neck_n2_random_rho_path():
     start = Stack((random_module(rng, 1.0).with_(rho=0.7), random_module(rng, 1.0).with_(rho=0.7)))
     end = start.with_module(0, rho=0.9).with_module(1, rho=0.5)
     compare_neck(start, end, np.full((2, 2), 0.8))
+
+
+# -- the nearly symmetric N = 3 neck of the issue -----------------------------------------------
+
+def paper_neck(n, rho, head, first=None):
+    """n paper modules at chord rho, upright, ``head`` (N) on each top node (vertical);
+    ``first`` changes module 0 (an asymmetry)."""
+    modules = [ModuleParams.paper(rho) for _ in range(n - 1)]
+    modules.append(ModuleParams.paper(rho, F3=head, F4=head))
+    if first:
+        modules[0] = modules[0].with_(**first)
+    return Stack(tuple(modules))
+
+
+def upright(n, rho):
+    from tensegrity_ros.core import equilibria
+    top = equilibria(ModuleParams.paper(rho)).stable[-1].theta
+    return np.tile(top, (n, 1))
+
+
+def test_n3_nearly_symmetric_neck_head_load_folds_where_the_tracker_says():
+    """The issue's N = 3 upright neck, m0 ka = 100.0000001, head load 0 -> -40 N per top
+    node: it buckles continuously (s ~ 0.1713, no event) and folds at s = 0.2921059.
+    Past the fold module 0 swings through its flat change point (equal rods and chords:
+    a parallelogram linkage, whose parallelogram and anti-parallelogram modes cross
+    there); two half-branches leave it downhill.  The reference takes the lower-energy
+    one, the tracker the parallelogram one, module 0 at (-pi/2, -pi/2): a convention,
+    not physics (a rod-length asymmetry decides it).  So the tracker's landing must be
+    one of the reference's, and from it on both agree to the end."""
+    start, end = paper_neck(3, 0.6, 0.0, dict(ka=100.0000001)), \
+        paper_neck(3, 0.6, -40.0, dict(ka=100.0000001))
+    begin = settle_stack(start, upright(3, 0.6))
+    system = NeckSystem(start.modules, end.modules)
+    ref = quasi_static_path(system, begin.theta.ravel())
+    got = track_stack(start, end, begin.theta)
+    assert got.status == 'ok', got.message
+    message = f'tracker jumps {describe(got.jumps)}, reference {describe_reference(ref.jumps)}'
+    (mine,), (theirs,) = got.jumps, ref.jumps
+    assert mine.kind == theirs.kind == 'fold', message
+    assert abs(mine.s - theirs.s) <= LOCATION_TOL, message
+    landings = [theirs.landing] + list(theirs.alternatives)
+    landing = np.ravel(mine.to_theta)
+    assert min(angle_distance(landing, x) for x in landings) <= LANDING_TOL, message
+    after = quasi_static_path(system, landing, theirs.s_after)
+    assert after.jumps == []
+    assert angle_distance(np.ravel(got.final.theta), after.final) <= FINAL_TOL

@@ -442,7 +442,7 @@ class NeckSystem:
             if np.max(np.abs(step[:m])) < 1e-13 + rounding_radius(self, z[:m], s):
                 f, _ = self._kkt(z, s)
                 return z[:m], bool(np.max(np.abs(f[:m])) <= 1e-10 * scale
-                                   and np.max(np.abs(f[m:])) <= 1e-12)
+                                   and np.max(np.abs(f[m:]), initial=0.0) <= 1e-12)
         return z[:m], False
 
     def reduced(self, theta, s):
@@ -666,16 +666,34 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None, close=False) -> Rest:
         flat.terminal, flat.direction = True, -1
         sol = solve_ivp(lambda _, x: system.velocity(base + x, s), (0.0, chunk), y - base,
                         method='LSODA', rtol=1e-10, atol=atol, events=(weaker, flat),
-                        jac=lambda _, x: system.velocity_jacobian(base + x, s))
+                        jac=lambda _, x: system.velocity_jacobian(base + x, s),
+                        dense_output=True)
+        near = _closest_to_a_change_point(system, base, sol, s, y)
         y = base + sol.y[:, -1]
         elapsed += float(sol.t[-1])
-        if sol.status == 1 and sol.t_events[1].size:
-            passed = _through_change_point(system, y, s, push_offs)
+        if near is not None:
+            passed = _through_change_point(system, near, s, push_offs)
             if passed is not None:
                 return passed
         if sol.status != 1:
             chunk *= 4.0
     raise NoRest(f'no certified rest at s={s!r} from {y0} within {MAX_LEGS} legs')
+
+
+def _closest_to_a_change_point(system, base, sol, s, start):
+    """The leg's state closest to a module's flat change point, if the leg came within
+    CHANGE_POINT_GRADIENT of one (by its event, or stepping over it: both of a module's
+    rods turned through its base line, sampled on the dense output), else None."""
+    end = base + sol.y[:, -1]
+    if sol.status == 1 and sol.t_events[1].size:
+        return end
+    start_sides = np.sign(np.sin(start))
+    if not np.any(np.all((start_sides * np.sign(np.sin(end))).reshape(-1, 2) < 0, axis=1)):
+        return None
+    samples = [base + sol.sol(t) for t in np.linspace(0.0, float(sol.t[-1]), 201)]
+    flatness = [system.singular_chord(x, s) for x in samples]
+    k = int(np.argmin(flatness))
+    return samples[k] if flatness[k] <= CHANGE_POINT_GRADIENT else None
 
 
 def _through_change_point(system, y, s, push_offs):

@@ -32,6 +32,19 @@ paths, each against a reference path, in ~6 min on the shared 2-core machine):
   necks: N = 2 random 5 paths, N = 3 random 2 paths; hypothesis properties: 25 random
   modules and 13 random N = 2 necks (jump landings checked by the reference's Newton).
   About 40 of the module paths hold a jump.
+Nearly symmetric necks (paper modules stacked, upright; an asymmetry 1e-2, 1e-4, 1e-6,
+1e-9 in module 0's ka or L2 or a horizontal head-load component; head load 0 -> -40 N
+per top node at rho 0.6, or every chord 0.9 -> 0.2 under -5 N): N = 1 all 24 paths;
+N = 2: 2 paths by default (head load, ka 1e-2 and fx 1e-9: a snap that the asymmetry
+makes a fold, through module 0's change point); the issue's N = 3 neck (ka 100.0000001,
+head load): 1 path.
+Not run by default, and why: the other 46 N = 2 / N = 3 nearly symmetric paths
+(FULL_NECKS=1 runs all 48; each N = 2 reference path takes 60-90 s alone on this
+machine; N = 3 chord ramp ka 1e-4 had not finished after 9 min under load: not yet
+diagnosed; none of the 46 run through on this branch); N = 5 necks (slower
+still); perfect (exactly symmetric) necks with a perturbed reference (issue 10 (b3),
+waiting for j10buckle's continuous supercritical buckling); more random N = 2 / 3 necks
+(each costs as much as a nearly symmetric one).
 The N = 3 nearly symmetric neck (m0 ka = 100.0000001, head load 0 -> -40 N): its
 reference ran > 540 s in one flow (module 0 stuck at its flat change point: equal rods
 and chords make it a parallelogram linkage, the chord constraint's gradient vanishes
@@ -42,6 +55,7 @@ it two branches leave the change point downhill, and the tracker lands on the hi
 energy one (module 0 at (-pi/2, -pi/2)), the reference's alternative.
 """
 import math
+import os
 
 import numpy as np
 import pytest
@@ -383,10 +397,41 @@ def test_every_reported_neck_jump_lands_on_a_stable_equilibrium(seed):
 # -- necks ----------------------------------------------------------------------------------
 
 def compare_neck(start, end, theta):
-    ref = quasi_static_path(NeckSystem(start.modules, end.modules), np.ravel(theta))
+    """The neck tracker against the reference (N = 1: the module's reference)."""
+    system = ModuleSystem(start.modules[0], end.modules[0]) if len(start.modules) == 1 \
+        else NeckSystem(start.modules, end.modules)
+    ref = quasi_static_path(system, np.ravel(theta))
     got = track_stack(start, end, np.asarray(theta, dtype=float).reshape(-1, 2))
-    assert_same_path(got, ref)
+    assert_same_neck_path(system, got, ref)
     return got, ref
+
+
+def assert_same_neck_path(system, got, ref):
+    """As :func:`assert_same_path`, but where the reference's jump passed a module's
+    change point (several ways out, ``alternatives``) the tracker may take another one:
+    then the reference is followed on from the tracker's landing."""
+    assert got.status == 'ok', got.message
+    mine_all = sorted(got.jumps, key=lambda j: j.s)
+    done = 0
+    while True:
+        message = f'tracker jumps {describe(got.jumps)}, reference {describe_reference(ref.jumps)}'
+        for theirs in ref.jumps:
+            assert done < len(mine_all), 'missed jump: ' + message
+            mine = mine_all[done]
+            done += 1
+            assert abs(mine.s - theirs.s) <= LOCATION_TOL, message
+            landing = np.ravel(mine.to_theta)
+            if angle_distance(landing, theirs.landing) <= LANDING_TOL:
+                continue
+            assert any(angle_distance(landing, x) <= LANDING_TOL for x in theirs.alternatives), \
+                message
+            ref = quasi_static_path(system, landing, theirs.s_after)
+            break
+        else:
+            assert done == len(mine_all), 'false jump: ' + message
+            final = np.ravel(got.final.theta)
+            assert angle_distance(final, ref.final) <= FINAL_TOL, (final, ref.final, message)
+            return
 
 
 def random_neck(rng, n):
@@ -449,18 +494,61 @@ def test_n3_nearly_symmetric_neck_head_load_folds_where_the_tracker_says():
     one of the reference's, and from it on both agree to the end."""
     start, end = paper_neck(3, 0.6, 0.0, dict(ka=100.0000001)), \
         paper_neck(3, 0.6, -40.0, dict(ka=100.0000001))
-    begin = settle_stack(start, upright(3, 0.6))
-    system = NeckSystem(start.modules, end.modules)
-    ref = quasi_static_path(system, begin.theta.ravel())
-    got = track_stack(start, end, begin.theta)
-    assert got.status == 'ok', got.message
-    message = f'tracker jumps {describe(got.jumps)}, reference {describe_reference(ref.jumps)}'
+    got, ref = compare_neck(start, end, settle_stack(start, upright(3, 0.6)).theta)
     (mine,), (theirs,) = got.jumps, ref.jumps
-    assert mine.kind == theirs.kind == 'fold', message
-    assert abs(mine.s - theirs.s) <= LOCATION_TOL, message
-    landings = [theirs.landing] + list(theirs.alternatives)
-    landing = np.ravel(mine.to_theta)
-    assert min(angle_distance(landing, x) for x in landings) <= LANDING_TOL, message
-    after = quasi_static_path(system, landing, theirs.s_after)
-    assert after.jumps == []
-    assert angle_distance(np.ravel(got.final.theta), after.final) <= FINAL_TOL
+    assert mine.kind == theirs.kind == 'fold'
+    assert theirs.alternatives                  # the change point's other way out
+
+
+# -- nearly symmetric necks: paper modules stacked, one small asymmetry ---------------------------
+
+#: (ramp, n): 'head' = head load 0 -> -40 N per top node at rho 0.6 (N = 2 snaps,
+#: N = 3 buckles and later folds); 'rho' = every chord 0.9 -> 0.2 under -5 N per top node.
+NEAR_SYMMETRIC_EPS = (1e-2, 1e-4, 1e-6, 1e-9)
+
+
+def near_symmetric_neck(n, ramp, kind, eps):
+    """(start, end) stacks: ``kind`` 'ka' (module 0 ka = 100 (1 + eps)), 'L2' (module 0
+    L2 = 1 + eps) or 'fx' (a horizontal head-load component, eps times the load)."""
+    head = -40.0 if ramp == 'head' else -5.0
+    first = {'ka': dict(ka=100.0 * (1.0 + eps)), 'L2': dict(L2=1.0 + eps), 'fx': None}[kind]
+    fx = abs(head) * eps if kind == 'fx' else 0.0
+
+    def stack(rho, load):
+        neck = paper_neck(n, rho, load, first)
+        return neck.with_module(n - 1, f3x=fx) if fx else neck
+
+    if ramp == 'head':
+        return stack(0.6, 0.0), stack(0.6, head)
+    return stack(0.9, head), stack(0.2, head)
+
+
+def compare_near_symmetric(n, ramp, kind, eps):
+    start, end = near_symmetric_neck(n, ramp, kind, eps)
+    rho = start.modules[0].rho
+    return compare_neck(start, end, settle_stack(start, upright(n, rho)).theta)
+
+
+NEAR_SYMMETRIC_CASES = [(ramp, kind, eps) for ramp in ('head', 'rho') for kind in ('ka', 'L2', 'fx')
+                        for eps in NEAR_SYMMETRIC_EPS]
+
+
+@pytest.mark.parametrize('ramp, kind, eps', NEAR_SYMMETRIC_CASES)
+def test_near_symmetric_one_module_neck(ramp, kind, eps):
+    """N = 1 (the neck tracker on one module): the head load folds it, the chord ramp
+    passes its flat state; an asymmetry of 1e-2 .. 1e-9 changes neither."""
+    compare_near_symmetric(1, ramp, kind, eps)
+
+
+#: N = 2 and 3 paths run by default (each neck reference path takes 40-90 s alone on
+#: this machine); FULL_NECKS=1 in the environment runs the whole grid (see the docstring).
+NEAR_SYMMETRIC_NECKS = [(2, 'head', 'ka', 1e-2), (2, 'head', 'fx', 1e-9)]
+if os.environ.get('FULL_NECKS') == '1':
+    NEAR_SYMMETRIC_NECKS = [(n, *case) for n in (2, 3) for case in NEAR_SYMMETRIC_CASES]
+
+
+@pytest.mark.parametrize('n, ramp, kind, eps', NEAR_SYMMETRIC_NECKS)
+def test_near_symmetric_neck(n, ramp, kind, eps):
+    """Paper modules stacked, one tiny asymmetry: the same jumps as the reference (the
+    near-pitchfork snaps of N = 2 are folds, N = 3 buckles with no event)."""
+    compare_near_symmetric(n, ramp, kind, eps)

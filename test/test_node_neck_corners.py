@@ -331,7 +331,9 @@ def test_runtime_geometry_change_of_one_module_is_tracked_and_bad_values_refused
     assert h.node.counters['tracking_failures'] == 0 and not h.jumps
 
 
-def test_softening_a_module_under_a_heavy_head_reports_the_buckling_jump(neck):
+def test_softening_a_module_under_a_heavy_head_buckles_it_continuously(neck):
+    """m1's springs 300 -> 200 N/m under a heavy head: the neck passes a supercritical
+    branch point and turns sideways smoothly: no message on ``jumps``, none counted."""
     n = neck()
     h = n.h
     result = h.node.set_parameters_atomically([Parameter('m2.force_a3', value=[0.0, -3.5]),
@@ -339,34 +341,20 @@ def test_softening_a_module_under_a_heavy_head_reports_the_buckling_jump(neck):
     assert result.successful
     stack0, eq0 = h.node.stack_state()
     assert not h.node.counters['jumps_total']
-    # m1's springs 300 -> 200 N/m: the loaded neck buckles sideways (found with the core)
     soft = stack0.with_module(1, ka=200.0, kb=200.0, kc=200.0)
-    expected = track_stack(stack0, soft, eq0)
-    assert expected.status == 'ok' and [j.kind for j in expected.jumps] == ['branch_point']
-    jump = expected.jumps[0]
+    expected = track_stack(stack0, soft, eq0)            # found with the core first
+    assert expected.status == 'ok' and expected.jumps == () and len(expected.passages) == 1
+    assert 200.0 < expected.passages[0].stack.modules[1].ka < 300.0
     h.spin_until(h.params.services_are_ready, what='parameter services')
     result = h.call(h.params.set_parameters([Parameter('m1.k', value=200.0)]), 'set m1.k')
     assert result.results[0].successful, result.results[0].reason
-    h.spin_until(lambda: h.jumps, what='a jump')
-    assert len(h.jumps) == 1 and h.jumps[0].level == DiagnosticStatus.WARN
-    v = values(h.jumps[0])
-    assert v['module'] == 'm1' and v['kind'] == 'branch_point'
-    assert v['cause'] == 'parameter m1.k'
-    assert float(v['rho']) == RHO0['m1']                 # the actuator did not move
-    assert float(v['s']) == pytest.approx(jump.s, abs=1e-9)
-    assert 200.0 < jump.stack.modules[1].ka < 300.0
-    for side, theta in (('from', jump.from_theta), ('to', jump.to_theta)):
-        got = np.array([[float(v[f'{side}_{m}_theta1']), float(v[f'{side}_{m}_theta2'])]
-                        for m in MODULES])
-        np.testing.assert_allclose(got, theta, atol=1e-9)
     stack, eq = h.node.stack_state()
     assert stack == soft and eq.stable
     np.testing.assert_allclose(eq.theta, expected.final.theta, atol=1e-8)
     assert abs(eq.head_angle) > 0.05                       # sideways
     n.wait_state(lambda p: p['m2_theta1'] == eq.theta[2][0], 'buckled joint_states')
-    h.spin_until(lambda: all(s.get('last_jump_kind') == 'branch_point' and
-                             s.get('jumps_total') == '1' and float(s['kc']) == 200.0 * (m == 'm1')
+    h.spin_until(lambda: all(s.get('jumps_total') == '0' and float(s['kc']) == 200.0 * (m == 'm1')
                              + 300.0 * (m != 'm1') for m, s in n.statuses().items()),
-                 what='statuses with the jump')
-    h.spin_until(lambda: h.counter('jumps_total') == 1, what='jump counted')
-    assert h.counter('tracking_failures') == 0 and h.counter('rejected_total') == 0
+                 what='statuses after the change')
+    assert not h.jumps and h.node.counters['jumps_total'] == 0
+    assert h.node.counters['tracking_failures'] == 0 and h.counter('rejected_total') == 0

@@ -648,9 +648,12 @@ class _Tracker:
         if distance >= cfg.max_state_step:
             return False
         onward = self.newton(y_star, s_land)
-        if (onward is not None and self.separation(onward, landing) > cfg.same_state_tol
-                and not self.definite(self.eigenvalues(onward, s_land))):
-            return False            # the tracked state goes on, unstable: it buckled
+        if onward is not None and self.separation(onward, landing) > cfg.same_state_tol:
+            if not self.definite(self.eigenvalues(onward, s_land)):
+                return False        # the tracked state goes on, unstable: it buckled
+        elif onward is not None and distance <= cfg.passage_radius:
+            return True             # Newton from the departure is the landing: one regular
+            #                         branch through both (a pitchfork run backwards)
         try:
             closer, _, _ = self.landing_state(kind, s_star, y_star, s_star + 0.01 * (s_land - s_star))
         except TrackingError:

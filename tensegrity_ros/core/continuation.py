@@ -612,11 +612,27 @@ class _Tracker:
             return None
         if s <= s_end:
             return y, s
+        near = self.buckled_at(s_star, y_star, y, s, s_end)
+        if near is not None:
+            return near, s_end
         back = _Tracker(_Segment(self.problem, s, s_end), self.settings).run(y)
         if back.status != 'ok' or back.events:
             raise TrackingError(f'the buckled state after the branch point at s={s_star!r} '
                                 f'could not be followed back to the end of the command')
         return back.state, s_end
+
+    def buckled_at(self, s_star, y_star, y, s, s_end):
+        """The buckled minimum at s_end in (s*, s), from the one found at s: Newton from
+        the parabola through both (amplitude ~ sqrt(s - s*)); ``None`` unless it converges
+        on the same side, near the guess, to a verified minimum."""
+        ratio = math.sqrt((s_end - s_star) / (s - s_star))
+        guess = y_star + ratio * (y - y_star)
+        found = self.newton(guess, s_end)
+        if (found is None or (found - y_star) @ (y - y_star) <= 0.0
+                or self.separation(found, guess) > 0.5 * self.separation(guess, y_star)
+                or not self.definite(self.eigenvalues(found, s_end))):
+            return None
+        return found
 
     def landing_at_event(self, landing, s_land, s_star):
         """The landing's stable equilibrium at the event's own s: (state, s).

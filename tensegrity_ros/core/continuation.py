@@ -17,9 +17,12 @@ only between two verified states of the branch where the test function
 lambda_min changes sign, or where the branch turns back in s; it is located
 there by a bracketed secant (to ~1e-12 in s) and kept only if lambda_min ~ 0.
 It is a fold where the critical mode ``psi`` is not orthogonal to ``F_s``, else
-a branch point.  The mechanism lands where an overdamped gradient flow with the
-parameters frozen just past the event takes it; where the landing closes in on
-the departure as that offset shrinks, the minimum simply goes on (no event).
+a branch point.  At a supercritical branch point (the bifurcated branch lies past
+s* and is stable) the state follows the buckled minimum: no event, the branch point
+is listed in ``Track.passages``.  Otherwise the mechanism lands where an
+overdamped gradient flow with the parameters frozen just past the event takes it;
+where the landing closes in on the departure as that offset shrinks, the minimum
+simply goes on (no event).
 Tolerances follow the local stiffness scale, so every magnitude works.
 """
 from __future__ import annotations

@@ -805,8 +805,19 @@ class StackJump:
 
 
 @dataclass(frozen=True)
+class StackPassage:
+    """A supercritical branch point the stack passed continuously (it buckled smoothly:
+    not a jump).  ``theta`` is the critical state (every module's angles)."""
+
+    s: float
+    stack: Stack
+    theta: np.ndarray
+
+
+@dataclass(frozen=True)
 class StackTrack:
-    """Result of :func:`track_stack` (see :class:`~.tracking.ModuleTrack`)."""
+    """Result of :func:`track_stack` (see :class:`~.tracking.ModuleTrack`); ``passages``
+    lists the branch points passed continuously (:class:`StackPassage`)."""
 
     final: StackEquilibrium
     end: Stack
@@ -814,6 +825,7 @@ class StackTrack:
     status: str = 'ok'
     message: str = ''
     steps: int = 0
+    passages: tuple = ()
 
 
 def _checked_angles(theta, n):
@@ -862,10 +874,12 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
                             from_theta=path.angles(e.state, e.s),
                             to_theta=path.angles(e.landing, e.landing_s), ambiguous=e.ambiguous)
                   for e in result.events)
+    passages = tuple(StackPassage(s=s, stack=path.params(s), theta=path.angles(y, s))
+                     for s, y in result.passages)
     reached = end if result.s == 1.0 else path.params(result.s)
     final = _record(path, result.state, result.s)
     return StackTrack(final=final, end=reached, jumps=jumps, status=result.status,
-                      message=result.message, steps=result.steps)
+                      message=result.message, steps=result.steps, passages=passages)
 
 
 def _angle_distance(path, a, b):

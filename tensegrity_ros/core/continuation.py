@@ -108,6 +108,9 @@ class TrackerSettings:
     #: An arclength step is kept only if the branch direction turns less than this
     #: (cosine) over it: a sharper turn means the corrector reached another branch.
     arc_alignment: float = 0.9
+    #: Past a linkage limit the minimum is looked for this far on (in s, and 100 times
+    #: closer, to see that it closes in: see ``_Tracker.through_linkage_limit``).
+    linkage_offset: float = 1e-6
     #: Wall-clock seconds one command may take before it gives up (None: no limit).
     time_budget: float | None = None
 
@@ -343,8 +346,11 @@ class _Tracker:
                 if arc is not None:
                     found = arc[1]
             if found is not None and found[1] <= s_end:
+                # at a linkage limit the flow of land() stalls: cross it first
+                landing, s_land, event = self.through_linkage_limit(found[2], found[1], s_end)
                 try:
-                    landing, s_land, event = self.land(*found, s_end)
+                    if landing is None:
+                        landing, s_land, event = self.land(*found, s_end)
                 except TrackingError as error:
                     return self.result(y, s, eigenvalues, events, 'failed', str(error))
                 if event is not None:
@@ -355,8 +361,15 @@ class _Tracker:
                 ds, rate = 1.0, None
                 continue
             if ds <= cfg.min_step:
-                return self.result(y, s, eigenvalues, events, 'failed',
-                                   f'step size underflow at s={s!r} ({reason})')
+                landing, s_land, _ = self.through_linkage_limit(y, s, s_end)
+                if landing is None:
+                    return self.result(y, s, eigenvalues, events, 'failed',
+                                       f'step size underflow at s={s!r} ({reason})')
+                y, s = landing, s_land
+                eigenvalues = self.eigenvalues(y, s)
+                self.rescale(eigenvalues)
+                ds, rate = 1.0, None
+                continue
             ds *= 0.25 if reason == 'indefinite' else 0.5
         return self.result(y, s, eigenvalues, events)
 
@@ -518,6 +531,66 @@ class _Tracker:
         ratio = self.orthogonality(y_star, s_star, psi)
         kind = FOLD if ratio > self.settings.branch_tol else BRANCH_POINT
         return kind, s_star, y_star
+
+    # -- linkage limits (constrained problems) ------------------------------------
+    def through_linkage_limit(self, y, s, s_end):
+        """Carry the minimum across a linkage limit: (state, s, None) just past it, or
+        (None, None, None) where the state is not at one or does not go on continuously.
+
+        At a linkage limit (the problem's optional ``linkage_limit(y, s)``: a constraint
+        whose gradient vanishes, e.g. a module folded flat onto its chord) two branches
+        of configurations cross, so the equilibrium equations are singular there even
+        where the state is a strict minimum: steps underflow or the branch seems to turn
+        back, and the landing flow stalls (its pull onto the constraints vanishes with
+        that gradient).  Just past it the minimum lies on one of the crossing branches,
+        ~sqrt(offset) away: the nearest verified minimum found by Newton from the state
+        moved along each state component and projected on the constraints.  It is the
+        mechanism going on (no jump) only if it closes in on the state as the offset
+        shrinks 100-fold (to 0.3 of its distance or less, as a square root does)."""
+        check = getattr(self.problem, 'linkage_limit', None)
+        if check is None or s >= s_end or not check(y, s):
+            return None, None, None
+        offset = min(self.settings.linkage_offset, s_end - s)
+        near = self.nearest_minimum(y, s + offset)
+        if near is None:
+            return None, None, None
+        closer = self.nearest_minimum(y, s + 0.01 * offset)
+        distance = self.separation(near, y)
+        if closer is None or self.separation(closer, y) > 0.3 * distance + self.settings.same_state_tol:
+            return None, None, None
+        return near, s + offset, None
+
+    def nearest_minimum(self, y, s):
+        """The verified minimum at s nearest to ``y`` among those Newton reaches from y
+        moved by 1e-5 .. 1e-1 (step norm) along each weighted state component, both
+        ways, and projected; ties go to the lower energy.  ``None`` if there is none."""
+        problem, best = self.problem, None
+        weights = np.ones(problem.size) if self.weights is None else self.weights
+        moving = np.flatnonzero(weights)
+        # each component alone, then seeded random mixtures (several constraints at
+        # their limits at once need a combined move)
+        directions = np.zeros((len(moving), problem.size))
+        directions[np.arange(len(moving)), moving] = 1.0 / weights[moving]
+        mixed = np.random.default_rng(0).standard_normal((2 * len(moving), len(moving)))
+        mixtures = np.zeros((len(mixed), problem.size))
+        mixtures[:, moving] = mixed / weights[moving]
+        directions = np.vstack([directions, mixtures])
+        for direction in directions:
+            direction = direction / self.step_norm(direction)
+            for amplitude in (1e-5, 1e-4, 1e-3, 1e-2, 1e-1):
+                for sign in (1.0, -1.0):
+                    checkpoint()
+                    moved = y + sign * amplitude * direction
+                    try:
+                        found = self.newton(problem.project(moved, s), s)
+                    except np.linalg.LinAlgError:
+                        continue
+                    if found is None or not self.definite(self.eigenvalues(found, s)):
+                        continue
+                    key = (round(self.separation(found, y), 9), problem.energy(found, s))
+                    if best is None or key < best[0]:
+                        best = key, found
+        return None if best is None else best[1]
 
     # -- events ---------------------------------------------------------------
     def critical(self, y, s, reference=None):
@@ -698,7 +771,8 @@ class _Tracker:
                 return None
             y = problem.project(y, s)
             polished = self.newton(y, s)
-            if polished is None or self.step_norm(polished - y) >= 1e-2:
+            if polished is None or (self.step_norm(polished - y) >= 1e-2
+                                    and not self.downhill(y, polished, s)):
                 continue
             if (self.definite(self.eigenvalues(polished, s))
                     and problem.energy(polished, s) <= problem.energy(y, s) + 1e-12 * self.scale):
@@ -706,6 +780,18 @@ class _Tracker:
             _, modes = problem.stability(polished, s)      # a saddle: push off
             y = problem.project(polished + self.step_off_vector(modes[:, 0]), s)
         return None
+
+    def downhill(self, a, b, s, samples=16):
+        """Whether the energy falls all the way along the straight line from ``a`` to ``b``
+        (projected): then Newton's ``b`` is the minimum of the valley the flow came to
+        rest in, however far, not one across a ridge.  In a very soft valley (lambda_min
+        ~1e-6 of the scale, a neck just past buckling) the flow comes to rest, by its
+        velocity, a few 1e-2 short of the minimum."""
+        problem = self.problem
+        energies = [problem.energy(problem.project(a + t * (b - a), s), s)
+                    for t in np.linspace(0.0, 1.0, samples + 1)]
+        slack = 1e-12 * (abs(energies[0]) + self.scale)
+        return all(e1 <= e0 + slack for e0, e1 in zip(energies, energies[1:]))
 
     def flow_to_rest(self, velocity, y, tol):
         """Integrate dy/dt = velocity until |velocity| <= tol; ``None`` if the solver fails."""

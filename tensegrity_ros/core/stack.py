@@ -51,6 +51,8 @@ _DAMPING = 1e-3
 _DAMPING_ONSET = 1e-2
 _FRAME_SIGNS, _ANGLE_SIGNS = np.array([1.0, -1.0]), np.array([-1.0, 1.0])  # StackPath.angles_at
 _BASE_AXIS = np.ones(1, dtype=complex)      # module 0's x axis A1(0) -> A2(0), as a chord
+#: A chord constraint whose gradient is below this (times l_ref) is at a linkage limit.
+LINKAGE_LIMIT_TOL = 1e-4
 
 
 def _solve_guarded(matrix, rhs):
@@ -657,6 +659,17 @@ class StackPath:
         n = self.topology.n_rods
         y[:n] = (y[:n] + math.pi) % (2.0 * math.pi) - math.pi
         return y
+
+    def linkage_limit(self, y, s):
+        """Whether the state sits at a linkage limit: a chord constraint whose gradient
+        (nearly) vanishes, i.e. a module's rods lie flat along its chord (rho(i) +
+        rho(i+1) = L1 + L2 for a symmetric module).  Two branches of configurations
+        cross there, so the equilibrium equations are singular although the state may
+        be a strict minimum (see ``_Tracker.through_linkage_limit``)."""
+        if not self.topology.n_chords:
+            return False
+        jc = self.point(y, s).constraint_jacobian(self)
+        return bool(np.linalg.svd(jc, compute_uv=False)[-1] < LINKAGE_LIMIT_TOL * self.l_ref)
 
     # -- reporting ---------------------------------------------------------------
     def angles(self, y, s):

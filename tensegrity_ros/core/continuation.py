@@ -364,7 +364,7 @@ class _Tracker:
                 landing, s_land, _ = self.through_linkage_limit(y, s, s_end)
                 if landing is None:
                     return self.result(y, s, eigenvalues, events, 'failed',
-                                       f'step size underflow at s={s!r} ({reason})')
+                                       self.underflow_reason(y, s, reason))
                 y, s = landing, s_land
                 eigenvalues = self.eigenvalues(y, s)
                 self.rescale(eigenvalues)
@@ -554,11 +554,30 @@ class _Tracker:
         near = self.nearest_minimum(y, s + offset)
         if near is None:
             return None, None, None
-        closer = self.nearest_minimum(y, s + 0.01 * offset)
+        # where the minimum goes on, it is ~0.1 as far at 0.01 of the offset (a square
+        # root); an equilibrium there that is not clearly unstable will do (another
+        # module may be at its own pitchfork at the same s, e.g. a neck of equal modules)
+        s_closer = s + 0.01 * offset
+        closer = self.newton(self.problem.project(y + 0.1 * (near - y), s_closer), s_closer)
+        if closer is not None and not self.eigenvalues(closer, s_closer)[0] > \
+                -self.settings.definiteness_tol * self.scale:
+            closer = None
+        if closer is None:
+            closer = self.nearest_minimum(y, s_closer)
         distance = self.separation(near, y)
         if closer is None or self.separation(closer, y) > 0.3 * distance + self.settings.same_state_tol:
             return None, None, None
         return near, s + offset, None
+
+    def underflow_reason(self, y, s, reason):
+        """Why the steps underflowed: a linkage limit the minimum does not cross
+        continuously (the rigid-chord model does not say where the mechanism goes: its
+        chord force grows without bound), or the failed step's reason."""
+        limit = getattr(self.problem, 'linkage_limit', lambda *_: '')(y, s)
+        if limit:
+            return (f'linkage limit at s={s!r}: {limit}; no minimum goes on continuously '
+                    f'past it, and the rigid-chord model does not say where the mechanism goes')
+        return f'step size underflow at s={s!r} ({reason})'
 
     def nearest_minimum(self, y, s):
         """The verified minimum at s nearest to ``y`` among those Newton reaches from y

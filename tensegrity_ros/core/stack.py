@@ -661,15 +661,23 @@ class StackPath:
         return y
 
     def linkage_limit(self, y, s):
-        """Whether the state sits at a linkage limit: a chord constraint whose gradient
-        (nearly) vanishes, i.e. a module's rods lie flat along its chord (rho(i) +
-        rho(i+1) = L1 + L2 for a symmetric module).  Two branches of configurations
-        cross there, so the equilibrium equations are singular although the state may
-        be a strict minimum (see ``_Tracker.through_linkage_limit``)."""
+        """A description of the linkage limit the state sits at, or '' if none.
+
+        At a linkage limit a chord constraint's gradient (nearly) vanishes: module i's
+        rods lie flat along its top chord (rho(i) + rho(i+1) = L1 + L2 for a crossed
+        module).  Two branches of configurations cross there, so the equilibrium
+        equations are singular although the state may be a strict minimum, and the
+        chord's force grows without bound where the load pushes along the fold (see
+        ``_Tracker.through_linkage_limit``)."""
         if not self.topology.n_chords:
-            return False
+            return ''
         jc = self.point(y, s).constraint_jacobian(self)
-        return bool(np.linalg.svd(jc, compute_uv=False)[-1] < LINKAGE_LIMIT_TOL * self.l_ref)
+        if np.linalg.svd(jc, compute_uv=False)[-1] >= LINKAGE_LIMIT_TOL * self.l_ref:
+            return ''
+        i = int(np.argmin(np.linalg.norm(jc, axis=1)))
+        force = abs(float(y[self.topology.n_rods + i])) * self.f_ref
+        return (f'module {i} folded flat onto its top chord (its rods and chord in one '
+                f'line; chord force {force:.3g} N)')
 
     # -- reporting ---------------------------------------------------------------
     def angles(self, y, s):

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.stack import Stack, track_stack
+from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 from tensegrity_ros.core.simulator import Simulator
 
-from reference_paths import NeckSystem, angle_distance, quasi_static_path
+from reference_paths import ModuleSystem, NeckSystem, angle_distance, quasi_static_path
 
 
 def paper_neck(n, rho=0.75):
@@ -37,7 +37,8 @@ def mirrored(theta):
 
 
 def assert_stable_for_the_reference(start, end, theta, s):
-    system = NeckSystem(start.modules, end.modules)
+    system = (NeckSystem(start.modules, end.modules) if len(start) > 1
+              else ModuleSystem(start.modules[0], end.modules[0]))
     star, ok = system.critical_point(np.ravel(theta), s)
     assert ok and angle_distance(star, np.ravel(theta)) < 1e-9, (theta, star)
     assert system.is_stable_equilibrium(star, s), (theta, s)
@@ -137,3 +138,27 @@ def test_a_toggle_at_a_linkage_limit_is_a_stated_give_up():
     assert abs(s_final - s_star) < 1e-9, (s_final, s_star)
     assert angle_distance(got.final.theta[0], np.zeros(2)) < 1e-5
     assert_stable_for_the_reference(start, end, got.final.theta, s_final)
+
+
+@pytest.mark.parametrize('n', [1, 2])
+def test_a_short_command_across_a_fold_reached_to_rounding_jumps_there(n):
+    """The top module (fig. 8b's loads, L2 = 1.05) tracked to 1e-7 m short of its fold,
+    then commanded to 1e-6 m past it (found by j14core2): the steps underflow within
+    ~1e-12 m of the fold, where lambda_min is still ~1e-6 of the scale; was 'step size
+    underflow (far)' with no jump.  Now one fold, at the long command's fold to 1e-8 m,
+    landing where the long command lands, a stable equilibrium for the reference."""
+    modules = [ModuleParams.paper(0.75) for _ in range(n - 1)]
+    stack = Stack(tuple(modules + [ModuleParams.paper(0.3, F3=5.0, F4=5.0, L2=1.05)]))
+    state = settle_stack(stack, np.full((n, 2), -0.5))
+    long = track_stack(stack, stack.with_module(n - 1, rho=1.6), state)
+    fold = long.jumps[0].stack.modules[-1].rho
+    near = stack.with_module(n - 1, rho=fold - 1e-7)
+    past = stack.with_module(n - 1, rho=fold + 1e-6)
+    approach = track_stack(stack, near, state)
+    got = track_stack(near, past, approach.final)
+    assert got.status == 'ok', got.message
+    assert [j.kind for j in got.jumps] == ['fold']
+    jump = got.jumps[0]
+    assert abs(jump.stack.modules[-1].rho - fold) < 1e-8
+    assert angle_distance(np.ravel(jump.to_theta), np.ravel(long.jumps[0].to_theta)) < 1e-4
+    assert_stable_for_the_reference(near, past, jump.to_theta, jump.s)

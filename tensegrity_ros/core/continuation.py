@@ -108,6 +108,9 @@ class TrackerSettings:
     #: An arclength step is kept only if the branch direction turns less than this
     #: (cosine) over it: a sharper turn means the corrector reached another branch.
     arc_alignment: float = 0.9
+    #: Where steps underflow, a state with lambda_min below this (relative to the scale)
+    #: is a critical point reached to rounding (see ``_Tracker.end_at_rounding``).
+    rounding_critical: float = 1e-5
     #: Past a linkage limit the minimum is looked for this far on (in s, and 100 times
     #: closer, to see that it closes in: see ``_Tracker.through_linkage_limit``).
     linkage_offset: float = 1e-6
@@ -361,10 +364,14 @@ class _Tracker:
                 ds, rate = 1.0, None
                 continue
             if ds <= cfg.min_step:
-                landing, s_land, _ = self.through_linkage_limit(y, s, s_end)
+                landing, s_land, event = self.through_linkage_limit(y, s, s_end)
+                if landing is None:
+                    landing, s_land, event = self.end_at_rounding(y, s, s_end)
                 if landing is None:
                     return self.result(y, s, eigenvalues, events, 'failed',
                                        self.underflow_reason(y, s, reason))
+                if event is not None:
+                    events.append(event)
                 y, s = landing, s_land
                 eigenvalues = self.eigenvalues(y, s)
                 self.rescale(eigenvalues)
@@ -568,6 +575,24 @@ class _Tracker:
         if closer is None or self.separation(closer, y) > 0.3 * distance + self.settings.same_state_tol:
             return None, None, None
         return near, s + offset, None
+
+    def end_at_rounding(self, y, s, s_end):
+        """The branch ends within rounding of (y, s): land as from a critical point there,
+        (state, s, event or None), or (None, None, None).
+
+        A fold approached by a command a few 1e-7 long is reached to ~1e-12 of the
+        parameter, where lambda_min (a square root of the distance) is still ~1e-6 of
+        the scale, above ``critical_tol``; no step of ``min_step`` goes on.  Where
+        lambda_min is that small (< ``rounding_critical``) the state is taken as the
+        critical point; land() still decides whether the mechanism jumps."""
+        lam, psi = self.critical(y, s)
+        if not 0.0 < lam < self.settings.rounding_critical:
+            return None, None, None
+        kind = FOLD if self.orthogonality(y, s, psi) > self.settings.branch_tol else BRANCH_POINT
+        try:
+            return self.land(kind, s, y, s_end)
+        except TrackingError:
+            return None, None, None
 
     def underflow_reason(self, y, s, reason):
         """Why the steps underflowed: a linkage limit the minimum does not cross

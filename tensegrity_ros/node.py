@@ -691,7 +691,7 @@ class TensegrityNode(Node):
         for i, m in enumerate(self._names):
             status = conv.equilibrium_status(
                 name=f'{self.get_name()}: {m}', hardware_id=self._hardware_id, module=m,
-                status=self._sim.status(i))
+                status=self._sim.status(i), reuse=self._last_statuses[i])
             self._last_statuses[i] = status
             self._eq_pub.publish(status)
         self._published_revision = self._sim.revision

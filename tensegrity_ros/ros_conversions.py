@@ -141,9 +141,29 @@ def _serialized_layout(msg, arrays):
 LEVELS = {'ok': OK, 'warn': WARN, 'error': ERROR}
 
 
-def equilibrium_status(*, name, hardware_id, module, status):
+def equilibrium_status(*, name, hardware_id, module, status, reuse=None):
     """``equilibrium`` DiagnosticStatus of one module from its simulator
-    :class:`~tensegrity_ros.core.simulator.ModuleStatus` (values: msg_docs/equilibrium.md)."""
+    :class:`~tensegrity_ros.core.simulator.ModuleStatus` (values: msg_docs/equilibrium.md).
+
+    ``reuse``: a message this function made before (already published): it is filled in
+    place and returned, its 34 ``KeyValue`` objects kept, which halves the cost of the
+    statuses a command stream republishes at ``publish_rate`` (a neck: 3 per tick)."""
+    pairs = _equilibrium_pairs(module, status)
+    level = LEVELS[status.level]
+    if reuse is not None and len(reuse.values) == len(pairs):
+        reuse.level, reuse.name, reuse.message = level, name, status.message
+        reuse.hardware_id = hardware_id
+        for kv, (_, value) in zip(reuse.values, pairs):
+            kv.value = fmt(value)           # the keys and their order are fixed
+        return reuse
+    msg = DiagnosticStatus(level=level, name=name, message=status.message,
+                           hardware_id=hardware_id)
+    msg.values = key_values(pairs)
+    return msg
+
+
+def _equilibrium_pairs(module, status):
+    """(key, value) of an ``equilibrium`` status, in the published order."""
     params, eq, last_jump = status.params, status.eq, status.last_jump
     found = status.operation_range
     if last_jump is None:
@@ -151,9 +171,7 @@ def equilibrium_status(*, name, hardware_id, module, status):
     else:
         last_kind, last_rho = last_jump.kind, float(last_jump.params.rho)
         last_s = float(last_jump.s)
-    msg = DiagnosticStatus(level=LEVELS[status.level], name=name, message=status.message,
-                           hardware_id=hardware_id)
-    msg.values = key_values((
+    return (
         ('module', module),
         ('stable', bool(eq.stable)),
         ('rho', params.rho),
@@ -188,8 +206,7 @@ def equilibrium_status(*, name, hardware_id, module, status):
         ('last_jump_s', last_s),
         ('jumps_total', status.jumps_total),
         ('tracking', status.tracking),
-    ))
-    return msg
+    )
 
 
 def _jump_message(*, name, hardware_id, jump, params, module, from_theta, to_theta, cause,

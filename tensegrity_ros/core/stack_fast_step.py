@@ -102,7 +102,10 @@ def _newton(path, y, tol, iterations):
         point = path.evaluate(y, 1.0)
         f = path.residual_at(point)
         previous = size
-    residual = float(np.abs(f).max())          # numpy: a NaN anywhere fails the test
+    values = f.tolist()
+    residual = max(map(abs, values))
+    if not math.isfinite(sum(values)):        # max() may pass over a NaN; a sum does not
+        return None, point, math.inf
     return (y if converged and residual <= tol else None), point, residual
 
 

@@ -310,7 +310,7 @@ class _Point:
     Hessian's diagonal term).  What only some callers need is made on first use."""
 
     __slots__ = ('key', 'values', 'rods', 'diff', 'force', 'moment', 'weights', '_multipliers',
-                 '_f_ref', '_squares', '_hessian', '_jc', '_gram', 'rates')
+                 '_f_ref', '_squares', '_pair', '_jc', '_gram', 'rates')
 
     def __init__(self, path, y, key, values):
         top = path.topology
@@ -327,7 +327,7 @@ class _Point:
         force = self.force = top.element_rods_tc @ (weights * diff)
         force -= values.rod_loads
         self.moment = rods.conj() * force
-        self._squares = self._hessian = self._jc = self._gram = self.rates = None
+        self._squares = self._pair = self._jc = self._gram = self.rates = None
 
     def gradient(self):
         """dL/dphi (2N,): the torque of the generalized force about every rod's base."""
@@ -356,13 +356,27 @@ class _Point:
 
     def hessian(self, path):
         """d2L/dphi2 (2N x 2N): (E^T W E)_rq v_r . v_q, less the moments on the diagonal."""
-        if self._hessian is None:
+        return self.pair(path)[0]
+
+    def metric(self, path):
+        """J^T J of the map from rod angles to moving node coordinates: the Cartesian metric."""
+        pair = self._pair
+        return path.topology.mobility * self.gram if pair is None else pair[1]
+
+    def pair(self, path):
+        """The Hessian and the metric stacked (2, 2N, 2N): both are a constant table
+        times the rods' Gram matrix, so one product makes both (and one reduction
+        ``Z^T pair Z`` both reduced matrices)."""
+        if self._pair is None:
             top = path.topology
-            h = (self.weights @ top.element_outer).reshape(top.n_rods, top.n_rods)
-            h *= self.gram
-            h.flat[::top.n_rods + 1] -= self.moment.real
-            self._hessian = h
-        return self._hessian
+            n = top.n_rods
+            pair = np.empty((2, n, n))
+            np.matmul(self.weights, top.element_outer, out=pair[0].reshape(n * n))
+            pair[1] = top.mobility
+            pair *= self.gram
+            pair[0].flat[::n + 1] -= self.moment.real
+            self._pair = pair
+        return self._pair
 
     def chords(self, path):
         return self.diff[path.topology.n_springs:]
@@ -376,10 +390,6 @@ class _Point:
             chords = self.chords(path)
             self._jc = (chords.conj()[:, None] * self.rods).imag * path.chord_rods_scaled
         return self._jc
-
-    def metric(self, path):
-        """J^T J of the map from rod angles to moving node coordinates: the Cartesian metric."""
-        return path.topology.mobility * self.gram
 
 
 class StackPath:
@@ -581,8 +591,8 @@ class StackPath:
         if not self.topology.n_chords:
             return p.hessian(self), p.metric(self), self.topology.identity, p
         z = _null_basis(p.constraint_jacobian(self))
-        zt = z.T
-        return zt @ p.hessian(self) @ z, zt @ p.metric(self) @ z, z, p
+        a, b = z.T @ p.pair(self) @ z
+        return a, b, z, p
 
     def eigenvalues(self, y, s):
         return self.eigenvalues_at(self.point(y, s))

@@ -153,6 +153,7 @@ class TensegrityNode(Node):
         self._sim = self._start_simulator()
         self._published_revision = None     # simulator revision of the last statuses
         self._last_statuses = [None] * len(self._names)
+        self._status_buffers = [conv.EquilibriumStatusBuffer() for _ in self._names]
         self._markers = [conv.ModuleMarkers(m) for m in self._names]
         self._head = conv.HeadPose()
         self._rho_joints = {f'{m}_rho': i for i, m in enumerate(self._names)}
@@ -708,9 +709,9 @@ class TensegrityNode(Node):
         """equilibrium of every module (all N together, in module order), and stable if
         it changed."""
         for i, m in enumerate(self._names):
-            status = conv.equilibrium_status(
+            status = self._status_buffers[i].update(
                 name=f'{self.get_name()}: {m}', hardware_id=self._hardware_id, module=m,
-                status=self._sim.status(i), reuse=self._last_statuses[i])
+                status=self._sim.status(i))
             self._last_statuses[i] = status
             self._eq_pub.publish(status)
         self._published_revision = self._sim.revision

@@ -141,25 +141,42 @@ def _serialized_layout(msg, arrays):
 LEVELS = {'ok': OK, 'warn': WARN, 'error': ERROR}
 
 
-def equilibrium_status(*, name, hardware_id, module, status, reuse=None):
+def equilibrium_status(*, name, hardware_id, module, status):
     """``equilibrium`` DiagnosticStatus of one module from its simulator
-    :class:`~tensegrity_ros.core.simulator.ModuleStatus` (values: msg_docs/equilibrium.md).
-
-    ``reuse``: a message this function made before (already published): it is filled in
-    place and returned, its 34 ``KeyValue`` objects kept, which halves the cost of the
-    statuses a command stream republishes at ``publish_rate`` (a neck: 3 per tick)."""
-    pairs = _equilibrium_pairs(module, status)
-    level = LEVELS[status.level]
-    if reuse is not None and len(reuse.values) == len(pairs):
-        reuse.level, reuse.name, reuse.message = level, name, status.message
-        reuse.hardware_id = hardware_id
-        for kv, (_, value) in zip(reuse.values, pairs):
-            kv.value = fmt(value)           # the keys and their order are fixed
-        return reuse
-    msg = DiagnosticStatus(level=level, name=name, message=status.message,
+    :class:`~tensegrity_ros.core.simulator.ModuleStatus` (values: msg_docs/equilibrium.md)."""
+    msg = DiagnosticStatus(level=LEVELS[status.level], name=name, message=status.message,
                            hardware_id=hardware_id)
-    msg.values = key_values(pairs)
+    msg.values = key_values(_equilibrium_pairs(module, status))
     return msg
+
+
+class EquilibriumStatusBuffer:
+    """The ``equilibrium`` status of one module, kept and filled in place.
+
+    A command stream makes the node republish every module's status at publish_rate (a
+    neck: 3 statuses of 34 values per tick); most values (the design, loads, counts) do
+    not change, so only the values that did are formatted again, into the message's own
+    ``KeyValue`` objects.  :attr:`msg` is the last status made (published as it is)."""
+
+    def __init__(self):
+        self.msg = None
+        self._values = ()           # the raw values behind msg's strings
+
+    def update(self, *, name, hardware_id, module, status):
+        """The status of ``status`` (what :func:`equilibrium_status` makes), in place."""
+        pairs = _equilibrium_pairs(module, status)
+        msg = self.msg
+        if msg is None:
+            self.msg = msg = equilibrium_status(name=name, hardware_id=hardware_id,
+                                                module=module, status=status)
+        else:
+            msg.level, msg.name, msg.message = LEVELS[status.level], name, status.message
+            msg.hardware_id = hardware_id
+            for kv, (_, value), old in zip(msg.values, pairs, self._values):
+                if type(value) is not type(old) or value != old:
+                    kv.value = fmt(value)
+        self._values = tuple(value for _, value in pairs)
+        return msg
 
 
 def _equilibrium_pairs(module, status):

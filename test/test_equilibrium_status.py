@@ -1,5 +1,5 @@
-"""The ``equilibrium`` status filled in place (ros_conversions.equilibrium_status with
-``reuse``) against one built afresh: the same level, texts and key/value pairs, whatever
+"""The ``equilibrium`` status filled in place (ros_conversions.EquilibriumStatusBuffer,
+only the changed values formatted again) against one built afresh: the same level, texts and key/value pairs, whatever
 state the reused message held before (another module, a jump, a failure, a warning)."""
 from hypothesis import given, settings, strategies as st
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -7,7 +7,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 
 from tensegrity_ros.core.module import ModuleParams
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
-from tensegrity_ros.ros_conversions import equilibrium_status
+from tensegrity_ros.ros_conversions import EquilibriumStatusBuffer, equilibrium_status
 
 NECK = [ModuleParams(rho=r, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02,
                      m2=0.02) for r in (0.09, 0.085, 0.08)]
@@ -54,13 +54,12 @@ def test_the_states_differ_in_what_a_status_shows():
 @settings(max_examples=60, deadline=None, derandomize=True)
 @given(st.lists(st.sampled_from(range(len(STATES))), min_size=2, max_size=6))
 def test_a_reused_status_equals_a_fresh_one(sequence):
-    reused = None
+    buffer = EquilibriumStatusBuffer()
     for k in sequence:
         name, module, status = STATES[k]
         fresh = equilibrium_status(name=name, hardware_id='/hw', module=module, status=status)
-        before = reused
-        reused = equilibrium_status(name=name, hardware_id='/hw', module=module,
-                                    status=status, reuse=reused)
+        before = buffer.msg
+        reused = buffer.update(name=name, hardware_id='/hw', module=module, status=status)
         assert before is None or reused is before               # filled in place
         assert _fields(reused) == _fields(fresh)
         sent = deserialize_message(serialize_message(reused), DiagnosticStatus)  # as published

@@ -755,21 +755,40 @@ class StackEquilibrium:
 
     ``theta`` (N x 2) local angles, ``nodes`` (2 + 2N, 2) every node in the base frame
     (A1(0), A2(0), then A3(i), A4(i) for each module), ``eigenvalues`` of the reduced
-    Hessian (N/m, ascending), ``actuator_forces`` (N,), ``state`` the tracker state.
+    Hessian (N/m, ascending), ``actuator_forces`` (N,), ``state`` the tracker state,
+    ``head_position`` (2,) and ``head_angle`` the midpoint and direction of the top chord.
+    The nodes and the head are made on first use, from ``placement``: a node tracks a
+    state per command (1 kHz) but reads them only at publish_rate.
     """
 
     theta: np.ndarray
-    nodes: np.ndarray
     eigenvalues: np.ndarray
     energy: float
     actuator_forces: np.ndarray
     residual: float
     state: np.ndarray
-    head_position: np.ndarray
-    head_angle: float
     #: The stack parameter vector (bytes) this state was verified at, so that tracking
     #: from it can reuse ``eigenvalues``.
     parameters: bytes = field(default=None, repr=False, compare=False)
+    #: (node table, node base offsets, rod vectors (complex), rho0): ``nodes`` from them.
+    placement: tuple = field(default=None, repr=False, compare=False)
+
+    @functools.cached_property
+    def nodes(self):
+        node_rods, node_base, rods, rho0 = self.placement
+        x = node_rods @ rods
+        x += node_base * rho0
+        return x.view(float).reshape(-1, 2)           # (x, y) pairs: complex memory layout
+
+    @property
+    def head_position(self):
+        (x3, y3), (x4, y4) = self.nodes[-2:].tolist()   # the top chord: A3(N-1), A4(N-1)
+        return np.array([0.5 * (x3 + x4), 0.5 * (y3 + y4)])
+
+    @property
+    def head_angle(self):
+        (x3, y3), (x4, y4) = self.nodes[-2:].tolist()
+        return math.atan2(y3 - y4, x3 - x4)
 
     @property
     def stable(self):
@@ -783,18 +802,15 @@ class StackEquilibrium:
 
 def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
     p = path.point(y, s)
-    nodes = path.nodes_at(p)
-    (x3, y3), (x4, y4) = nodes[-2:].tolist()          # the top chord: A3(N-1), A4(N-1)
+    top = path.topology
     return StackEquilibrium(
-        theta=path.angles_at(p), nodes=nodes,
+        theta=path.angles_at(p),
         eigenvalues=path.eigenvalues_at(p) if eigenvalues is None else eigenvalues,
         energy=path.energy_at(p) if energy is None else energy,
         actuator_forces=path.actuator_forces_at(p),
         residual=float(np.max(np.abs(path.residual_at(p)))) if residual is None else residual,
-        state=np.array(y),
-        head_position=np.array([0.5 * (x3 + x4), 0.5 * (y3 + y4)]),
-        head_angle=math.atan2(y3 - y4, x3 - x4),
-        parameters=path.parameter_vector(s).tobytes())
+        state=np.array(y), parameters=path.parameter_vector(s).tobytes(),
+        placement=(top.node_rods_c, top.node_base, p.rods, p.values.rho0))
 
 
 def stack_equilibrium_at(stack: Stack, state) -> StackEquilibrium:

@@ -705,6 +705,15 @@ def stack_jump_record(jump):
             'ambiguous': bool(jump.ambiguous), 'F3': float(head.f3y), 'F4': float(head.f4y)}
 
 
+def stack_passage_record(passage):
+    """A supercritical branch point the stack passed continuously, as JSON."""
+    head = passage.stack.modules[-1]
+    return {'kind': 'branch_point', 's': float(passage.s),
+            'rho': [float(m.rho) for m in passage.stack.modules],
+            'theta': [[float(a), float(b)] for a, b in passage.theta],
+            'F3': float(head.f3y), 'F4': float(head.f4y)}
+
+
 def cmd_stack_track(args, out):
     from .core.stack import settle_stack, track_stack
     spec = _stack_spec(args)
@@ -736,6 +745,7 @@ def cmd_stack_track(args, out):
         'start': dict(state(first, start), guess=[[float(a), float(b)] for a, b in guess],
                       guess_source=source, params=[params_record(m) for m in start.modules]),
         'events': [stack_jump_record(j) for j in track.jumps],
+        'passages': [stack_passage_record(p) for p in track.passages],
         'final': dict(state(final, track.end),
                       params=[params_record(m) for m in track.end.modules]),
     }
@@ -747,6 +757,11 @@ def cmd_stack_track(args, out):
               f'  ->  {describe_modules(end.modules, names)}\n')
     out.write(f'start ({source}): theta [deg] {_theta_text(first.theta, names)}; '
               f'{_head_text(first)}; margin {first.stability_margin:.4g} N/m\n')
+    for p in track.passages:
+        rho = ', '.join(f'{m.rho:.9g}' for m in p.stack.modules)
+        out.write(f'passed: branch_point at s={p.s:.9f} rho=({rho}): theta [deg] '
+                  f'{_theta_text(p.theta, names)}, buckled continuously (supercritical: '
+                  f'no jump)\n')
     if not track.jumps:
         out.write('no jump: the stack stays on its branch\n')
     for i, j in enumerate(track.jumps, 1):

@@ -535,17 +535,19 @@ def test_config_file_track(capsys):
     assert np.shape(doc['final']['theta']) == (3, 2)
     assert wrapped(doc['start']['theta'][0], doc['final']['theta'][0]) < 1e-9   # m0 is held
     assert doc['final']['head']['y'] > doc['start']['head']['y']         # shorter top actuator
-    # a growing head load buckles the neck sideways: a branch point, then it lands stable
+    # a growing head load buckles the neck sideways, continuously (a supercritical branch
+    # point: listed in passages, not a jump), then it folds and lands stable
     doc = run_json(capsys, 'track', '--config', NECK, '--to-F', -30)
     assert doc['status'] == 'ok'
-    kinds = [e['kind'] for e in doc['events']]
-    assert kinds[0] == 'branch_point'
+    assert [e['kind'] for e in doc['events']] == ['fold']
     for e in doc['events']:
         assert set(e) >= {'kind', 's', 'rho', 'theta', 'landing'}
         assert e['rho'] == [0.09, 0.085, 0.08]
         assert np.shape(e['theta']) == (3, 2) and np.shape(e['landing']['theta']) == (3, 2)
-    first = doc['events'][0]
+    [first] = doc['passages']
+    assert first['kind'] == 'branch_point' and first['s'] < doc['events'][0]['s']
     assert first['F3'] == pytest.approx(-0.5 + first['s'] * (-30 + 0.5), abs=1e-9)
+    assert first['F3'] == pytest.approx(-3.9076778, abs=1e-6)
     before = np.array(first['theta'])
     assert np.max(np.abs(before[:, 0] - before[:, 1])) < 1e-6      # symmetric before
     assert doc['final']['stable'] is True
@@ -576,8 +578,15 @@ def test_stack_track_text(capsys):
     lines = out.splitlines()
     assert lines[0].startswith('path: 2 modules m0, m1') and lines[1].startswith('  ->  ')
     assert lines[2].startswith('start (upright): theta [deg] m0 (')
-    assert lines[3].startswith('event 1: branch_point at s=')
+    assert lines[3].startswith('event 1: branch_point at s=')     # N = 2: subcritical
     assert lines[-1].startswith('final: theta [deg] m0 (') and 'status ok' in lines[-1]
+    # config/neck.yaml: the supercritical sideways buckling is passed, then the fold jumps
+    code, out, err = run(capsys, 'track', '--config', NECK, '--to-F', -30)
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[3].startswith('passed: branch_point at s=0.115514501 ')
+    assert lines[3].endswith('buckled continuously (supercritical: no jump)')
+    assert lines[4].startswith('event 1: fold at s=0.227085456 ')
 
 
 def test_config_file_layouts(capsys, tmp_path):

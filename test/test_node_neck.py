@@ -141,31 +141,31 @@ def test_head_load_jump_reported_by_a_lower_module_command(neck):
     assert result.successful
     stack, eq = h.node.stack_state()
     assert stack == loaded and eq.stable and not h.node.counters['jumps_total']
-    # shortening m1 now buckles the neck sideways (found with the core first)
-    expected = track_stack(stack, stack.with_module(1, rho=0.07), eq)
-    assert [j.kind for j in expected.jumps] == ['branch_point']
+    # shortening m0 now buckles the neck sideways (continuously) and then snaps it over
+    # at a fold of m0 (found with the core first)
+    expected = track_stack(stack, stack.with_module(0, rho=0.05), eq)
+    assert [j.kind for j in expected.jumps] == ['fold'] and len(expected.passages) == 1
     jump = expected.jumps[0]
-    n.rho_pubs['m1'].publish(Float64(data=0.07))
+    n.rho_pubs['m0'].publish(Float64(data=0.05))
     h.spin_until(lambda: h.jumps, what='a jump')
     msg = h.jumps[-1]
     assert msg.level == DiagnosticStatus.WARN
     v = values(msg)
-    assert v['module'] == 'm1' and v['kind'] == 'branch_point' and v['cause'] == 'rho_cmd'
-    assert float(v['rho']) == pytest.approx(jump.stack.modules[1].rho, abs=1e-9)
-    assert 0.07 < float(v['rho']) < 0.085
+    assert v['module'] == 'm0' and v['kind'] == 'fold' and v['cause'] == 'rho_cmd'
+    assert float(v['rho']) == pytest.approx(jump.stack.modules[0].rho, abs=1e-9)
+    assert 0.05 < float(v['rho']) < 0.09
     assert float(v['s']) == pytest.approx(jump.s, abs=1e-9)
     assert v['ambiguous'] == ('true' if jump.ambiguous else 'false')
     np.testing.assert_allclose(_angles(v, 'from'), jump.from_theta, atol=1e-9)
     np.testing.assert_allclose(_angles(v, 'to'), jump.to_theta, atol=1e-9)
-    assert float(v['from_theta1']) == float(v['from_m1_theta1'])
-    assert float(v['to_theta2']) == float(v['to_m1_theta2'])
+    assert float(v['from_theta1']) == float(v['from_m0_theta1'])
+    assert float(v['to_theta2']) == float(v['to_m0_theta2'])
     # the node lands where the core does; every module records the jump
-    h.spin_until(lambda: h.node.stack_state()[0].modules[1].rho == 0.07, what='landing')
+    h.spin_until(lambda: h.node.stack_state()[0].modules[0].rho == 0.05, what='landing')
     np.testing.assert_allclose(h.node.stack_state()[1].theta, expected.final.theta, atol=1e-8)
-    h.spin_until(lambda: all(v.get('last_jump_kind') == 'branch_point'
+    h.spin_until(lambda: all(v.get('last_jump_kind') == 'fold'
                              for v in n.statuses().values()), what='statuses with the jump')
-    # sideways: the head has turned
-    assert abs(h.node.stack_state()[1].head_angle) > 0.05
+    assert len(h.jumps) == 1 and h.node.counters['jumps_total'] == 1
     # reset returns to rho_initial (with the force parameters now set) and settles upright
     result = h.call(h.reset_client.call_async(Trigger.Request()), 'reset')
     assert result.success
@@ -177,19 +177,45 @@ def test_head_load_jump_reported_by_a_lower_module_command(neck):
     assert eq.theta[2][0] == pytest.approx(eq.theta[2][1], abs=1e-9)      # upright again
 
 
+def test_a_sideways_buckling_under_a_heavy_head_publishes_no_jump(neck):
+    """config/neck.yaml, 3.5 N per head node, m1 rho 0.085 -> 0.07 by rho_cmd: a
+    supercritical branch point (the upright neck turns sideways smoothly): nothing on
+    ``jumps``, none counted, joint_states reach the buckled state."""
+    n = neck()
+    h = n.h
+    result = h.node.set_parameters_atomically([Parameter('m2.force_a3', value=[0.0, -3.5]),
+                                               Parameter('m2.force_a4', value=[0.0, -3.5])])
+    assert result.successful
+    stack, eq = h.node.stack_state()
+    expected = track_stack(stack, stack.with_module(1, rho=0.07), eq)
+    assert expected.jumps == () and len(expected.passages) == 1
+    assert 0.07 < expected.passages[0].stack.modules[1].rho < 0.085
+    n.rho_pubs['m1'].publish(Float64(data=0.07))
+    want = expected.final.theta
+    pos, _ = n.wait_state(lambda p: p['m1_rho'] == 0.07, 'the buckled joint_states')
+    got = np.array([[pos[f'{m}_theta1'], pos[f'{m}_theta2']] for m in MODULES])
+    np.testing.assert_allclose(got, want, atol=1e-8)
+    assert abs(want[2][0] - want[2][1]) > 1e-3 and abs(h.node.stack_state()[1].head_angle) > 0.05
+    h.spin_until(lambda: len(n.statuses()) == 3 and float(n.statuses()['m1']['rho']) == 0.07
+                 and all(v['jumps_total'] == '0' for v in n.statuses().values()),
+                 what='statuses after the buckling')
+    assert not h.jumps and h.node.counters['jumps_total'] == 0
+
+
 def test_head_load_jump_is_named_after_the_head_module(neck):
     n = neck()
     h = n.h
     stack0, eq0 = h.node.stack_state()
-    expected = track_stack(stack0, stack0.with_module(2, f3y=-5.0, f4y=-5.0), eq0)
-    assert [j.kind for j in expected.jumps] == ['branch_point']
+    expected = track_stack(stack0, stack0.with_module(2, f3y=-10.0, f4y=-10.0), eq0)
+    # a continuous sideways buckling at -3.91 N, then a fold at -7.20 N per head node
+    assert [j.kind for j in expected.jumps] == ['fold'] and len(expected.passages) == 1
     # both head forces in one atomic parameter set: one symmetric path
-    result = h.node.set_parameters_atomically([Parameter('m2.force_a3', value=[0.0, -5.0]),
-                                               Parameter('m2.force_a4', value=[0.0, -5.0])])
+    result = h.node.set_parameters_atomically([Parameter('m2.force_a3', value=[0.0, -10.0]),
+                                               Parameter('m2.force_a4', value=[0.0, -10.0])])
     assert result.successful
     h.spin_until(lambda: h.jumps, what='a jump')
     v = values(h.jumps[-1])
-    assert v['module'] == 'm2' and v['kind'] == 'branch_point'
+    assert v['module'] == 'm2' and v['kind'] == 'fold'
     assert v['cause'] == 'parameter m2.force_a3, m2.force_a4'
     assert float(v['rho']) == 0.08
     assert float(v['f3y']) == pytest.approx(expected.jumps[0].stack.modules[2].f3y, abs=1e-9)

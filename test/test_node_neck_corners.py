@@ -127,38 +127,38 @@ def test_speed_limited_stack_moves_gradually_and_reaches_the_targets(neck):
 
 
 def test_speed_limited_module_and_a_jumping_module_in_one_joint_commands(neck):
-    """m0 speed-limited, m1 not: m1's target is tracked at once (the loaded neck buckles,
-    which takes the tracker a while); m0 starts moving when the message arrived and is
-    published at no more than its limit, not with a catch-up step for the tracking time."""
+    """m0 speed-limited, m2 not: m2's target is tracked at once (the loaded neck snaps at
+    a fold, which takes the tracker a while); m0 starts moving when the message arrived and
+    is published at no more than its limit, not with a catch-up step for the tracking time."""
     n = neck(parameters={'m0.max_rho_rate': RATE, 'publish_rate': 50.0})
     h = n.h
     result = h.node.set_parameters_atomically([Parameter('m2.force_a3', value=[0.0, -3.5]),
                                                Parameter('m2.force_a4', value=[0.0, -3.5])])
     assert result.successful
     stack0, eq0 = h.node.stack_state()
-    buckle = track_stack(stack0, stack0.with_module(1, rho=0.07), eq0)
-    assert [j.kind for j in buckle.jumps] == ['branch_point']
-    rest = track_stack(buckle.end, buckle.end.with_module(0, rho=0.1), buckle.final)
+    snap = track_stack(stack0, stack0.with_module(2, rho=0.12), eq0)
+    assert [j.kind for j in snap.jumps] == ['fold']
+    rest = track_stack(snap.end, snap.end.with_module(0, rho=0.1), snap.final)
     assert rest.status == 'ok' and not rest.jumps
     k = len(h.joint_states)
-    h.jc_pub.publish(JointState(name=['m0_rho', 'm1_rho'], position=[0.1, 0.07]))
+    h.jc_pub.publish(JointState(name=['m0_rho', 'm2_rho'], position=[0.1, 0.12]))
     h.spin_until(lambda: _published_rhos(h.joint_states[-1])['m0'] == 0.1, what='m0 at 0.1')
-    # from the state the command's callback published (m1 landed, m0 not moved yet)
+    # from the state the command's callback published (m2 landed, m0 not moved yet)
     moving = h.joint_states[k:]
-    moving = moving[[_published_rhos(m)['m1'] for m in moving].index(0.07):]
-    assert [_published_rhos(m)['m1'] for m in moving] == [0.07] * len(moving)
+    moving = moving[[_published_rhos(m)['m2'] for m in moving].index(0.12):]
+    assert [_published_rhos(m)['m2'] for m in moving] == [0.12] * len(moving)
     sec0 = moving[0].header.stamp.sec
     stamps = [(m.header.stamp.sec - sec0) + 1e-9 * m.header.stamp.nanosec for m in moving]
     m0 = [_published_rhos(m)['m0'] for m in moving]
     assert m0[0] == 0.09
     for (r0, t0), (r1, t1) in zip(zip(m0, stamps), zip(m0[1:], stamps[1:])):
         assert 0.0 <= r1 - r0 <= RATE * (t1 - t0) + 1e-9, (r0, r1, t1 - t0)
-    # (the first segment covers the tracking time of m1's jump: the actuator kept moving
+    # (the first segment covers the tracking time of m2's jump: the actuator kept moving
     # meanwhile, so how many intermediate states there are depends on the machine)
     assert stamps[m0.index(0.1)] >= 0.01 / RATE - 1e-6     # 10 mm at RATE from the message
     assert len(h.jumps) == 1
     v = values(h.jumps[0])
-    assert v['module'] == 'm1' and v['kind'] == 'branch_point' and v['cause'] == 'joint_commands'
+    assert v['module'] == 'm2' and v['kind'] == 'fold' and v['cause'] == 'joint_commands'
     assert float(v['m0_rho']) == 0.09                     # m0 had not moved yet
     stack, eq = h.node.stack_state()
     assert stack == rest.end and eq.stable
@@ -331,7 +331,9 @@ def test_runtime_geometry_change_of_one_module_is_tracked_and_bad_values_refused
     assert h.node.counters['tracking_failures'] == 0 and not h.jumps
 
 
-def test_softening_a_module_under_a_heavy_head_reports_the_buckling_jump(neck):
+def test_softening_a_module_under_a_heavy_head_buckles_it_continuously(neck):
+    """m1's springs 300 -> 200 N/m under a heavy head: the neck passes a supercritical
+    branch point and turns sideways smoothly: no message on ``jumps``, none counted."""
     n = neck()
     h = n.h
     result = h.node.set_parameters_atomically([Parameter('m2.force_a3', value=[0.0, -3.5]),
@@ -339,34 +341,22 @@ def test_softening_a_module_under_a_heavy_head_reports_the_buckling_jump(neck):
     assert result.successful
     stack0, eq0 = h.node.stack_state()
     assert not h.node.counters['jumps_total']
-    # m1's springs 300 -> 200 N/m: the loaded neck buckles sideways (found with the core)
     soft = stack0.with_module(1, ka=200.0, kb=200.0, kc=200.0)
-    expected = track_stack(stack0, soft, eq0)
-    assert expected.status == 'ok' and [j.kind for j in expected.jumps] == ['branch_point']
-    jump = expected.jumps[0]
+    expected = track_stack(stack0, soft, eq0)            # found with the core first
+    assert expected.status == 'ok' and expected.jumps == () and len(expected.passages) == 1
+    assert 200.0 < expected.passages[0].stack.modules[1].ka < 300.0
     h.spin_until(h.params.services_are_ready, what='parameter services')
     result = h.call(h.params.set_parameters([Parameter('m1.k', value=200.0)]), 'set m1.k')
     assert result.results[0].successful, result.results[0].reason
-    h.spin_until(lambda: h.jumps, what='a jump')
-    assert len(h.jumps) == 1 and h.jumps[0].level == DiagnosticStatus.WARN
-    v = values(h.jumps[0])
-    assert v['module'] == 'm1' and v['kind'] == 'branch_point'
-    assert v['cause'] == 'parameter m1.k'
-    assert float(v['rho']) == RHO0['m1']                 # the actuator did not move
-    assert float(v['s']) == pytest.approx(jump.s, abs=1e-9)
-    assert 200.0 < jump.stack.modules[1].ka < 300.0
-    for side, theta in (('from', jump.from_theta), ('to', jump.to_theta)):
-        got = np.array([[float(v[f'{side}_{m}_theta1']), float(v[f'{side}_{m}_theta2'])]
-                        for m in MODULES])
-        np.testing.assert_allclose(got, theta, atol=1e-9)
+    # the path may take more than one call's time budget: it ends on ticks
+    h.spin_until(lambda: h.node.stack_state()[0] == soft, what='the softened neck')
     stack, eq = h.node.stack_state()
-    assert stack == soft and eq.stable
+    assert eq.stable
     np.testing.assert_allclose(eq.theta, expected.final.theta, atol=1e-8)
     assert abs(eq.head_angle) > 0.05                       # sideways
     n.wait_state(lambda p: p['m2_theta1'] == eq.theta[2][0], 'buckled joint_states')
-    h.spin_until(lambda: all(s.get('last_jump_kind') == 'branch_point' and
-                             s.get('jumps_total') == '1' and float(s['kc']) == 200.0 * (m == 'm1')
+    h.spin_until(lambda: all(s.get('jumps_total') == '0' and float(s['kc']) == 200.0 * (m == 'm1')
                              + 300.0 * (m != 'm1') for m, s in n.statuses().items()),
-                 what='statuses with the jump')
-    h.spin_until(lambda: h.counter('jumps_total') == 1, what='jump counted')
-    assert h.counter('tracking_failures') == 0 and h.counter('rejected_total') == 0
+                 what='statuses after the change')
+    assert not h.jumps and h.node.counters['jumps_total'] == 0
+    assert h.node.counters['tracking_failures'] == 0 and h.counter('rejected_total') == 0

@@ -17,6 +17,12 @@ from tensegrity_ros.core.events import Jump, JumpAhead, TrackingFailure, combine
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 
+
+def wrapped(a, b):
+    """Largest angle difference modulo 2 pi."""
+    d = (np.asarray(a, dtype=float) - np.asarray(b, dtype=float) + math.pi) % (2 * math.pi) - math.pi
+    return float(np.max(np.abs(d)))
+
 LOWER = [-1.0, -1.0]                 # fig. 8a: the lower stable branch at rho = 0.5
 S = 1_000_000_000                    # ns per second
 #: These tests are about what a path does, not how its work is split over calls (that
@@ -282,24 +288,44 @@ def test_neck_targets_are_refused_as_a_whole():
 
 
 def test_a_neck_jump_is_recorded_in_every_module():
-    """config/neck.yaml with a heavy head: shortening the middle module buckles it."""
+    """config/neck.yaml with a heavy head: lengthening the head module past its fold
+    snaps the neck (the sideways buckling on shortening m1 is continuous: no jump)."""
     base = ModuleParams(rho=0.09, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0,
                         m1=0.02, m2=0.02)
     modules = (base, base.with_(rho=0.085), base.with_(rho=0.08, f3y=-3.5, f4y=-3.5))
     guess = [[0.754, 0.754], [0.813, 0.813], [0.85, 0.85]]
     sim = Simulator(modules, guess)
     start = settle_stack(Stack(modules), guess)
-    expected = track_stack(Stack(modules), Stack(modules).with_module(1, rho=0.07), start)
-    assert [j.kind for j in expected.jumps] == ['branch_point']
-    [jump] = finished(sim, sim.command_rho(1, 0.07, 0)).of_type(Jump)
+    expected = track_stack(Stack(modules), Stack(modules).with_module(2, rho=0.12), start)
+    assert [j.kind for j in expected.jumps] == ['fold']
+    [jump] = finished(sim, sim.command_rho(2, 0.12, 0)).of_type(Jump)
     want = expected.jumps[0]
-    assert (jump.kind, jump.module, jump.count) == ('branch_point', 1, 1)
+    assert (jump.kind, jump.module, jump.count) == ('fold', 2, 1)
+    assert jump.modules[2].rho == pytest.approx(0.096427, abs=1e-6)
     assert jump.modules == want.stack.modules
     np.testing.assert_allclose(jump.to_theta, want.to_theta, atol=0)
     for i in range(3):
         status = sim.status(i)
         assert status.jumps_total == 1 and status.last_jump.params == want.stack.modules[i]
     np.testing.assert_allclose(sim.state.theta, expected.final.theta, atol=0)
+
+
+def test_a_neck_buckling_sideways_continuously_is_no_jump():
+    """config/neck.yaml with a heavy head: shortening the middle module passes a
+    supercritical branch point: no jump, no warning, the neck turns sideways."""
+    base = ModuleParams(rho=0.09, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0,
+                        m1=0.02, m2=0.02)
+    modules = (base, base.with_(rho=0.085), base.with_(rho=0.08, f3y=-3.5, f4y=-3.5))
+    guess = [[0.754, 0.754], [0.813, 0.813], [0.85, 0.85]]
+    sim = Simulator(modules, guess)
+    expected = track_stack(Stack(modules), Stack(modules).with_module(1, rho=0.07),
+                           settle_stack(Stack(modules), guess))
+    assert expected.jumps == () and len(expected.passages) == 1
+    outcome = finished(sim, sim.command_rho(1, 0.07, 0))
+    assert not outcome.of_type(Jump) and not outcome.of_type(JumpAhead)
+    assert all(sim.status(i).jumps_total == 0 for i in range(3))
+    np.testing.assert_allclose(sim.state.theta, expected.final.theta, atol=1e-9)
+    assert abs(sim.state.head_angle) > 0.05 and verified_minimum(sim)
 
 
 def test_a_neck_speed_limit_moves_one_module_at_its_rate():
@@ -367,15 +393,21 @@ def test_no_early_warning_where_a_branch_merges_into_the_flat_state():
     assert outcome.events == () and sim.modules[0].rho == 1.3
 
 
-def test_the_flat_state_buckling_is_warned_and_jumps():
-    """The other way the flat state loses stability at rho = 1 and buckles: the tracker
-    reports a branch-point jump, so the warning is given."""
+def test_the_flat_state_buckles_smoothly_without_warning_or_jump():
+    """The other way the flat state loses stability at rho = 1: a supercritical pitchfork,
+    the module buckles smoothly onto the upper branch growing out of it (no jump, so no
+    warning), as it would come back: the path rho 1.3 -> 0.75 -> 1.3 is reversible."""
     sim = Simulator([ModuleParams(rho=1.3)], [[0.0, 0.0]], [ModuleLimits(0.0, 3.0)],
                     **UNBOUNDED)
-    warning, jump = sim.command_rho(0, 0.75, 0).events
-    assert isinstance(warning, JumpAhead) and warning.end.kind == 'branch_point'
-    assert isinstance(jump, Jump) and jump.kind == 'branch_point'
-    assert jump.modules[0].rho == pytest.approx(warning.end.rho, abs=1e-9)
+    end = sim.status(0).operation_range.lower
+    assert (end.kind, end.rho) == ('branch_point', 1.0)
+    outcome = sim.command_rho(0, 0.75, 0)
+    assert outcome.events == ()
+    upper = equilibria(ModuleParams(rho=0.75)).stable
+    theta = sim.module(0)[1].theta
+    assert min(wrapped(theta, e.theta) for e in upper) < 1e-9 and wrapped(theta, (0, 0)) > 0.5
+    assert sim.command_rho(0, 1.3, 0).events == ()
+    assert wrapped(sim.module(0)[1].theta, (0.0, 0.0)) < 1e-9
 
 
 @settings(max_examples=40, deadline=None, derandomize=True)

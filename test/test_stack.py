@@ -7,8 +7,8 @@ import pytest
 from scipy.optimize import minimize
 
 from tensegrity_ros.core import BRANCH_POINT, FOLD, ModuleParams, equilibria, settle, track_module
-from tensegrity_ros.core.stack import (Stack, StackPath, settle_stack, stack_equilibria,
-                                       stack_equilibrium_at, track_stack)
+from tensegrity_ros.core.stack import (Stack, StackJump, StackPassage, StackPath, settle_stack,
+                                       stack_equilibria, stack_equilibrium_at, track_stack)
 
 G = 9.80665
 
@@ -213,7 +213,13 @@ def critical_head_load(n, rho=0.6):
     result = track_stack(neck(n, 0.0, rho), neck(n, -40.0, rho), start)
     assert result.status == 'ok', result.message
     assert result.final.stable
-    return result.jumps[0], start
+    # the first critical point: a jump, or a sideways buckling passed continuously
+    first = min(result.jumps + result.passages, key=lambda event: event.s)
+    return first, start
+
+
+def kind_of(event):
+    return event.kind if isinstance(event, StackJump) else BRANCH_POINT
 
 
 @pytest.mark.parametrize('n', [1, 2, 3])
@@ -227,13 +233,14 @@ def test_critical_load_is_where_the_reduced_hessian_loses_definiteness(n):
         short = track_stack(neck(n, 0.0), neck(n, load + offset), start)
         assert short.jumps == () and short.final.stable
         margins.append(short.final.stability_margin)
-    power = 1.0 if jump.kind == BRANCH_POINT else 2.0
+    power = 1.0 if kind_of(jump) == BRANCH_POINT else 2.0
     (l1, l2), (f1, f2) = np.power(margins, power), (load + 1e-4, load + 1e-5)
     zero = f1 - l1 * (f2 - f1) / (l2 - l1)
     assert zero == pytest.approx(load, abs=4e-8)          # 1e-9 in s: the load moves 40 N over s
-    # and just past the event the tracked branch is gone or unstable: the command jumps
+    # and just past the event the tracked branch is gone or unstable: the command jumps,
+    # or (a supercritical branch point) passes it continuously onto a buckled minimum
     past = track_stack(neck(n, 0.0), neck(n, load - 1e-6), start)
-    assert len(past.jumps) == 1 and past.final.stable
+    assert len(past.jumps) + len(past.passages) == 1 and past.final.stable
 
 
 def test_critical_load_falls_as_the_neck_grows_and_n1_is_the_module_fold():
@@ -249,13 +256,21 @@ def test_critical_load_falls_as_the_neck_grows_and_n1_is_the_module_fold():
     assert loads[0] == pytest.approx(module.jumps[0].params.f3y, abs=1e-7)
 
 
-def test_upright_neck_buckles_sideways():
-    jump, _ = critical_head_load(3)
-    assert jump.kind == BRANCH_POINT
-    before, after = jump.from_theta, jump.to_theta
-    # symmetric before (t1 = t2 in every module), asymmetric after
-    assert np.max(np.abs(before[:, 0] - before[:, 1])) < 1e-6
-    assert np.max(np.abs(after[:, 0] - after[:, 1])) > 1e-3
+def test_upright_neck_buckles_sideways_continuously():
+    """N = 3: a supercritical branch point, passed without a jump onto a buckled minimum
+    that grows out of the upright state like sqrt(load - critical load)."""
+    passage, start = critical_head_load(3)
+    assert isinstance(passage, StackPassage)
+    load = passage.stack.modules[-1].f3y
+    # symmetric at the critical point (t1 = t2 in every module), asymmetric after
+    assert np.max(np.abs(passage.theta[:, 0] - passage.theta[:, 1])) < 1e-6
+    spread = []
+    for beyond in (1e-2, 1e-4):
+        after = track_stack(neck(3, 0.0), neck(3, load - beyond), start)
+        assert after.jumps == () and after.final.stable and len(after.passages) == 1
+        spread.append(np.max(np.abs(after.final.theta - passage.theta)))
+    assert spread[0] > 1e-3
+    assert spread[1] / spread[0] == pytest.approx(0.1, rel=0.05)       # a square root
 
 
 # -- tracking a ten-module neck -----------------------------------------------------------

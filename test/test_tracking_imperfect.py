@@ -80,13 +80,19 @@ def test_unloaded_module_passes_onto_the_flat_state_at_rho_equal_L_without_a_jum
     assert result.final.stable and wrapped(result.final.theta, (0.0, 0.0)) < 1e-9
 
 
-def test_the_flat_state_losing_stability_at_rho_equal_L_is_a_branch_point():
+def test_the_flat_state_losing_stability_at_rho_equal_L_buckles_continuously():
+    """A supercritical pitchfork: the buckled minima grow out of the flat state like
+    sqrt(L - rho), the module follows one of them, no jump; the branch point is listed."""
     start = settle(ModuleParams(rho=1.3), [0.0, 0.0])
     result = track_module(ModuleParams(rho=1.3), ModuleParams(rho=0.75), start.theta)
-    (jump,) = result.jumps
-    assert jump.kind == BRANCH_POINT and jump.params.rho == pytest.approx(1.0, abs=1e-9)
+    assert result.jumps == ()
+    (passage,) = result.passages
+    assert passage.rho == pytest.approx(1.0, abs=1e-9)
     exact = [e.theta for e in equilibria(ModuleParams(rho=0.75)).stable]
     assert min(wrapped(result.final.theta, t) for t in exact) < 1e-8
+    # just past it the state is within ~sqrt(1 - rho) of the flat one: no finite jump
+    near = track_module(ModuleParams(rho=1.3), ModuleParams(rho=1.0 - 1e-6), start.theta)
+    assert near.jumps == () and 1e-4 < wrapped(near.final.theta, (0.0, 0.0)) < 1e-2
 
 
 @pytest.mark.parametrize('params', [P(0.5, F3=5, F4=5), P(0.7, F3=-10, F4=-10, L2=1.5)])

@@ -136,6 +136,8 @@ class Track:
 
     ``status`` is ``'ok'`` when ``s == 1``, else ``'failed'`` with a ``message``;
     ``state`` has always passed the residual and positive-definiteness checks.
+    ``passages``: (s, critical state) of each supercritical branch point the state
+    passed continuously (it buckled smoothly onto a new minimum: not a jump, no event).
     """
 
     state: np.ndarray
@@ -145,6 +147,7 @@ class Track:
     status: str = 'ok'
     message: str = ''
     steps: int = 0
+    passages: tuple = ()
 
 
 class _FlowBudgetExceeded(Exception):
@@ -220,6 +223,7 @@ class _Tracker:
         self.steps = 0
         self.last_rate = None     # d lambda_min / ds over the last accepted step
         self.base_scale = None    # the stability scale at the start
+        self.passages = []        # (s, state) of the branch points passed continuously
         self.deadline = (None if settings.time_budget is None
                          else time.perf_counter() + settings.time_budget)
         weights = getattr(problem, 'state_weights', None)
@@ -407,7 +411,8 @@ class _Tracker:
 
     def result(self, y, s, eigenvalues, events, status='ok', message=''):
         return Track(state=y, s=s, eigenvalues=np.asarray(eigenvalues), events=tuple(events),
-                     status=status, message=message, steps=self.steps)
+                     status=status, message=message, steps=self.steps,
+                     passages=tuple(self.passages))
 
     def eigenvalue_rate(self, y, s, tangent, lam):
         """d lambda_min / ds along the branch, by a small forward difference."""
@@ -662,6 +667,11 @@ class _Tracker:
         the landed state is followed back along its own branch to the end point.
         """
         problem = self.problem
+        if kind == BRANCH_POINT:
+            buckled = self.buckled_minimum(s_star, y_star, s_end)
+            if buckled is not None:             # supercritical: no jump, the state goes on
+                self.passages.append((s_star, y_star))
+                return (*buckled, None)
         offset = self.landing_offset(kind, y_star, s_star)
         s_land = s_star + offset
         if s_land > s_end and not _admissible(problem, s_land):
@@ -679,6 +689,67 @@ class _Tracker:
         at_event, s_at = self.landing_at_event(landing, s_land, s_star)
         return landing, s_land, Event(kind=kind, s=s_star, state=y_star, landing_s=s_at,
                                       landing=at_event, ambiguous=ambiguous)
+
+    def buckled_minimum(self, s_star, y_star, s_end):
+        """The stable buckled state just past a supercritical branch point: (state, s) or ``None``.
+
+        At a branch point the bifurcated branch leaves along the critical mode psi
+        with s - s* ~ a^2 at amplitude a.  It is found on the hyperplane
+        psi . (y - y*) = a (the arclength corrector, regular off the trivial branch).
+        Where it lies past s* and is stable (supercritical: the minimum turns into
+        a saddle and two minima grow out of it like sqrt(s - s*)), the mechanism
+        follows it continuously, no jump.  Where it lies before s* (subcritical,
+        e.g. C1 of fig. 8a) or is unstable, ``None``: the mechanism jumps.
+        The amplitude grows until the buckled state is stable with a margin (100x
+        the definiteness tolerance).  Of the two mirror sides of a perfect
+        pitchfork the one along +psi is taken, psi oriented so that its first
+        clearly non-zero component is positive (a deterministic rule: the two
+        sides have the same energy).  Past the end of the command the buckled
+        branch is followed back to it.
+        """
+        _, psi = self.critical(y_star, s_star)
+        clear = np.flatnonzero(np.abs(psi) > 1e-3 * np.max(np.abs(psi)))
+        if clear.size and psi[clear[0]] < 0.0:
+            psi = -psi
+        direction = np.append(psi, 0.0)
+        amplitude = self.settings.step_off / max(self.step_norm(psi), 1e-300)
+        for _ in range(6):
+            found = self.arc_point(y_star, s_star, direction, amplitude)
+            if found is None or not found[1] > s_star:
+                return None                     # not past s*: subcritical (or lost)
+            y, s = found
+            eigenvalues = self.eigenvalues(y, s)
+            if eigenvalues[0] < 0.0:
+                return None                     # the bifurcated branch is unstable
+            if eigenvalues[0] > 100.0 * self.settings.definiteness_tol * max(
+                    abs(eigenvalues[-1]), self.scale * 1e-3):
+                break
+            amplitude *= 2.0
+        else:
+            return None
+        if s <= s_end:
+            return y, s
+        near = self.buckled_at(s_star, y_star, y, s, s_end)
+        if near is not None:
+            return near, s_end
+        back = _Tracker(_Segment(self.problem, s, s_end), self.settings).run(y)
+        if back.status != 'ok' or back.events:
+            raise TrackingError(f'the buckled state after the branch point at s={s_star!r} '
+                                f'could not be followed back to the end of the command')
+        return back.state, s_end
+
+    def buckled_at(self, s_star, y_star, y, s, s_end):
+        """The buckled minimum at s_end in (s*, s), from the one found at s: Newton from
+        the parabola through both (amplitude ~ sqrt(s - s*)); ``None`` unless it converges
+        on the same side, near the guess, to a verified minimum."""
+        ratio = math.sqrt((s_end - s_star) / (s - s_star))
+        guess = y_star + ratio * (y - y_star)
+        found = self.newton(guess, s_end)
+        if (found is None or (found - y_star) @ (y - y_star) <= 0.0
+                or self.separation(found, guess) > 0.5 * self.separation(guess, y_star)
+                or not self.definite(self.eigenvalues(found, s_end))):
+            return None
+        return found
 
     def landing_at_event(self, landing, s_land, s_star):
         """The landing's stable equilibrium at the event's own s: (state, s).
@@ -710,9 +781,12 @@ class _Tracker:
         if distance >= cfg.max_state_step:
             return False
         onward = self.newton(y_star, s_land)
-        if (onward is not None and self.separation(onward, landing) > cfg.same_state_tol
-                and not self.definite(self.eigenvalues(onward, s_land))):
-            return False            # the tracked state goes on, unstable: it buckled
+        if onward is not None and self.separation(onward, landing) > cfg.same_state_tol:
+            if not self.definite(self.eigenvalues(onward, s_land)):
+                return False        # the tracked state goes on, unstable: it buckled
+        elif onward is not None and distance <= cfg.passage_radius:
+            return True             # Newton from the departure is the landing: one regular
+            #                         branch through both (a pitchfork run backwards)
         try:
             closer, _, _ = self.landing_state(kind, s_star, y_star, s_star + 0.01 * (s_land - s_star))
         except TrackingError:

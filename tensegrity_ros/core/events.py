@@ -103,6 +103,10 @@ def refused(reason, message):
 
 def combined(outcomes):
     """One outcome for several accepted steps: failed if any failed, every event in order."""
+    if type(outcomes) is list and len(outcomes) == 1:   # a command's path: already one
+        only = outcomes[0]
+        if only.status != REFUSED and not (only.reason or only.message):
+            return only
     events = tuple(e for o in outcomes for e in o.events)
     failed = any(o.status == FAILED for o in outcomes)
     return Outcome(status=FAILED if failed else OK, events=events)

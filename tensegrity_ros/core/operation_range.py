@@ -17,6 +17,7 @@ from .bifurcation_model import (BOUND_TOL, BRANCH_POINT, FOLD, LIMIT, MIRROR, SW
                                 _FLATS, _critical_mode, _gh, _raw, _scale, _symmetries, _wrap)
 from .classification import DEGENERACY_TOL, hessian_eigenvalues
 from .module import ModuleParams
+from .polynomial_solver import equilibria
 
 # ---------------------------------------------------------------------------
 # Operation range: continuation of one stable branch in rho
@@ -80,15 +81,36 @@ class OperationRange:
         """Whether the tracker jumps where this branch reaches ``end`` (one of its ends).
 
         At a fold, always.  At a branch point, only where this branch is the symmetric
-        one losing stability (it buckles); a non-symmetric branch ending where it merges
-        into its symmetric one (a pitchfork run backwards, e.g. the unloaded module at
-        rho = (L1 + L2) / 2) goes on along it, stable, without a jump.  A branch point
+        one losing stability (it buckles) at a subcritical pitchfork (e.g. C1 of fig.
+        8a).  A non-symmetric branch ending where it merges into its symmetric one (a
+        pitchfork run backwards, e.g. the unloaded module at rho = (L1 + L2) / 2) goes
+        on along it, stable, without a jump; so does a symmetric branch losing stability
+        at a supercritical pitchfork (the flat state of that module at the same rho): it
+        buckles smoothly onto one of the two minima growing out of it.  A branch point
         whose symmetry is not known counts as a jump."""
         if end.kind == FOLD:
             return True
         if end.kind != BRANCH_POINT:
             return False
-        return end.symmetry is None or _invariant(self.theta, end.symmetry)
+        if end.symmetry is None:
+            return True
+        return _invariant(self.theta, end.symmetry) and not self._buckles_smoothly(end)
+
+    def _buckles_smoothly(self, end):
+        """A supercritical pitchfork at ``end``: just beyond it (1e-4 (L1 + L2) in rho)
+        a stable equilibrium that breaks the symmetry lies next to the critical state
+        (the buckled minima are ~ sqrt(rho distance) from it, ~1e-2 rad here; at a
+        subcritical one the bifurcated equilibria lie on this side and are unstable)."""
+        p = self.params
+        step = 1e-4 * (p.L1 + p.L2)
+        beyond = end.rho + (step if end is self.upper else -step)
+        if beyond <= 0.0:
+            return False
+        for e in equilibria(p.with_(rho=beyond)).stable:
+            near = max(abs(_wrap_float(a - b)) for a, b in zip(e.theta, end.theta))
+            if near < 0.2 and not _invariant(e.theta, end.symmetry, 1e-6):
+                return True
+        return False
 
     def theta_at(self, rho):
         """The branch's equilibrium at ``rho`` inside the range (interpolated, polished)."""

@@ -271,12 +271,14 @@ class Simulator:
         if refusal is not None:
             return refusal
         self._start_call()
-        warnings = tuple(w for w in (self._jump_ahead(i, rho, cause)
-                                     for i, rho in targets.items()) if w is not None)
-        if not any(self._slots[i].limits.max_rho_rate > 0.0 for i in targets):
-            for index in targets:
-                self._slots[index].target = None
-            ends = {i: self.goal(i).with_rho(rho) for i, rho in targets.items()}
+        warnings = self._jumps_ahead(targets, cause)
+        slots = self._slots
+        if not any(slots[i].limits.max_rho_rate > 0.0 for i in targets):
+            goals = self._goals()
+            ends = {}
+            for index, rho in targets.items():
+                slots[index].target = None
+                ends[index] = goals[index].with_rho(rho)
             moved = self._move(ends, cause, next(iter(targets)))
         else:
             moved = ev.combined(self._retarget(i, rho, now_ns, cause)
@@ -415,6 +417,13 @@ class Simulator:
             return ev.refused(ev.OUT_OF_RANGE, f'{rho!r} outside [rho_min, rho_max] = '
                                                f'[{limits.rho_min}, {limits.rho_max}]')
         return None
+
+    def _jumps_ahead(self, targets, cause):
+        """The :class:`JumpAhead` warnings of actuator ``targets`` {index: rho} (a tuple)."""
+        if not self._mechanism.has_operation_range:
+            return ()
+        return tuple(w for w in (self._jump_ahead(i, rho, cause) for i, rho in targets.items())
+                     if w is not None)
 
     def _jump_ahead(self, index, rho, cause):
         """A :class:`JumpAhead` if ``rho`` lies beyond an end of the live branch's

@@ -312,7 +312,7 @@ class _Point:
     Hessian's diagonal term).  What only some callers need is made on first use."""
 
     __slots__ = ('key', 'values', 'rods', 'diff', 'force', 'moment', 'weights', '_multipliers',
-                 '_f_ref', '_squares', '_hessian', '_jc', '_gram', 'rates')
+                 '_f_ref', '_squares', '_pair', '_jc', '_gram', 'rates')
 
     def __init__(self, path, y, key, values):
         top = path.topology
@@ -329,7 +329,7 @@ class _Point:
         force = self.force = top.element_rods_tc @ (weights * diff)
         force -= values.rod_loads
         self.moment = rods.conj() * force
-        self._squares = self._hessian = self._jc = self._gram = self.rates = None
+        self._squares = self._pair = self._jc = self._gram = self.rates = None
 
     def gradient(self):
         """dL/dphi (2N,): the torque of the generalized force about every rod's base."""
@@ -358,13 +358,27 @@ class _Point:
 
     def hessian(self, path):
         """d2L/dphi2 (2N x 2N): (E^T W E)_rq v_r . v_q, less the moments on the diagonal."""
-        if self._hessian is None:
+        return self.pair(path)[0]
+
+    def metric(self, path):
+        """J^T J of the map from rod angles to moving node coordinates: the Cartesian metric."""
+        pair = self._pair
+        return path.topology.mobility * self.gram if pair is None else pair[1]
+
+    def pair(self, path):
+        """The Hessian and the metric stacked (2, 2N, 2N): both are a constant table
+        times the rods' Gram matrix, so one product makes both (and one reduction
+        ``Z^T pair Z`` both reduced matrices)."""
+        if self._pair is None:
             top = path.topology
-            h = (self.weights @ top.element_outer).reshape(top.n_rods, top.n_rods)
-            h *= self.gram
-            h.flat[::top.n_rods + 1] -= self.moment.real
-            self._hessian = h
-        return self._hessian
+            n = top.n_rods
+            pair = np.empty((2, n, n))
+            np.matmul(self.weights, top.element_outer, out=pair[0].reshape(n * n))
+            pair[1] = top.mobility
+            pair *= self.gram
+            pair[0].flat[::n + 1] -= self.moment.real
+            self._pair = pair
+        return self._pair
 
     def chords(self, path):
         return self.diff[path.topology.n_springs:]
@@ -378,10 +392,6 @@ class _Point:
             chords = self.chords(path)
             self._jc = (chords.conj()[:, None] * self.rods).imag * path.chord_rods_scaled
         return self._jc
-
-    def metric(self, path):
-        """J^T J of the map from rod angles to moving node coordinates: the Cartesian metric."""
-        return path.topology.mobility * self.gram
 
 
 class StackPath:
@@ -583,8 +593,8 @@ class StackPath:
         if not self.topology.n_chords:
             return p.hessian(self), p.metric(self), self.topology.identity, p
         z = _null_basis(p.constraint_jacobian(self))
-        zt = z.T
-        return zt @ p.hessian(self) @ z, zt @ p.metric(self) @ z, z, p
+        a, b = z.T @ p.pair(self) @ z
+        return a, b, z, p
 
     def eigenvalues(self, y, s):
         return self.eigenvalues_at(self.point(y, s))
@@ -766,21 +776,40 @@ class StackEquilibrium:
 
     ``theta`` (N x 2) local angles, ``nodes`` (2 + 2N, 2) every node in the base frame
     (A1(0), A2(0), then A3(i), A4(i) for each module), ``eigenvalues`` of the reduced
-    Hessian (N/m, ascending), ``actuator_forces`` (N,), ``state`` the tracker state.
+    Hessian (N/m, ascending), ``actuator_forces`` (N,), ``state`` the tracker state,
+    ``head_position`` (2,) and ``head_angle`` the midpoint and direction of the top chord.
+    The nodes and the head are made on first use, from ``placement``: a node tracks a
+    state per command (1 kHz) but reads them only at publish_rate.
     """
 
     theta: np.ndarray
-    nodes: np.ndarray
     eigenvalues: np.ndarray
     energy: float
     actuator_forces: np.ndarray
     residual: float
     state: np.ndarray
-    head_position: np.ndarray
-    head_angle: float
     #: The stack parameter vector (bytes) this state was verified at, so that tracking
     #: from it can reuse ``eigenvalues``.
     parameters: bytes = field(default=None, repr=False, compare=False)
+    #: (node table, node base offsets, rod vectors (complex), rho0): ``nodes`` from them.
+    placement: tuple = field(default=None, repr=False, compare=False)
+
+    @functools.cached_property
+    def nodes(self):
+        node_rods, node_base, rods, rho0 = self.placement
+        x = node_rods @ rods
+        x += node_base * rho0
+        return x.view(float).reshape(-1, 2)           # (x, y) pairs: complex memory layout
+
+    @property
+    def head_position(self):
+        (x3, y3), (x4, y4) = self.nodes[-2:].tolist()   # the top chord: A3(N-1), A4(N-1)
+        return np.array([0.5 * (x3 + x4), 0.5 * (y3 + y4)])
+
+    @property
+    def head_angle(self):
+        (x3, y3), (x4, y4) = self.nodes[-2:].tolist()
+        return math.atan2(y3 - y4, x3 - x4)
 
     @property
     def stable(self):
@@ -794,18 +823,15 @@ class StackEquilibrium:
 
 def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
     p = path.point(y, s)
-    nodes = path.nodes_at(p)
-    (x3, y3), (x4, y4) = nodes[-2:].tolist()          # the top chord: A3(N-1), A4(N-1)
+    top = path.topology
     return StackEquilibrium(
-        theta=path.angles_at(p), nodes=nodes,
+        theta=path.angles_at(p),
         eigenvalues=path.eigenvalues_at(p) if eigenvalues is None else eigenvalues,
         energy=path.energy_at(p) if energy is None else energy,
         actuator_forces=path.actuator_forces_at(p),
         residual=float(np.max(np.abs(path.residual_at(p)))) if residual is None else residual,
-        state=np.array(y),
-        head_position=np.array([0.5 * (x3 + x4), 0.5 * (y3 + y4)]),
-        head_angle=math.atan2(y3 - y4, x3 - x4),
-        parameters=path.parameter_vector(s).tobytes())
+        state=np.array(y), parameters=path.parameter_vector(s).tobytes(),
+        placement=(top.node_rods_c, top.node_base, p.rods, p.values.rho0))
 
 
 def stack_equilibrium_at(stack: Stack, state) -> StackEquilibrium:
@@ -826,8 +852,19 @@ class StackJump:
 
 
 @dataclass(frozen=True)
+class StackPassage:
+    """A supercritical branch point the stack passed continuously (it buckled smoothly:
+    not a jump).  ``theta`` is the critical state (every module's angles)."""
+
+    s: float
+    stack: Stack
+    theta: np.ndarray
+
+
+@dataclass(frozen=True)
 class StackTrack:
-    """Result of :func:`track_stack` (see :class:`~.tracking.ModuleTrack`)."""
+    """Result of :func:`track_stack` (see :class:`~.tracking.ModuleTrack`); ``passages``
+    lists the branch points passed continuously (:class:`StackPassage`)."""
 
     final: StackEquilibrium
     end: Stack
@@ -835,6 +872,7 @@ class StackTrack:
     status: str = 'ok'
     message: str = ''
     steps: int = 0
+    passages: tuple = ()
 
 
 def _checked_angles(theta, n):
@@ -883,10 +921,12 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
                             from_theta=path.angles(e.state, e.s),
                             to_theta=path.angles(e.landing, e.landing_s), ambiguous=e.ambiguous)
                   for e in result.events)
+    passages = tuple(StackPassage(s=s, stack=path.params(s), theta=path.angles(y, s))
+                     for s, y in result.passages)
     reached = end if result.s == 1.0 else path.params(result.s)
     final = _record(path, result.state, result.s)
     return StackTrack(final=final, end=reached, jumps=jumps, status=result.status,
-                      message=result.message, steps=result.steps)
+                      message=result.message, steps=result.steps, passages=passages)
 
 
 def _angle_distance(path, a, b):

@@ -42,7 +42,9 @@ class ModuleTrack:
 
     ``status`` is ``'ok'`` (``end`` is the commanded end point) or ``'failed'``
     (``end`` is where tracking stopped; ``final`` is still a verified stable
-    equilibrium there).  ``final`` is never an unverified state.
+    equilibrium there).  ``final`` is never an unverified state.  ``passages``:
+    the parameters of each supercritical branch point passed continuously (the
+    module buckled smoothly onto a new minimum: not a jump).
     """
 
     final: Equilibrium
@@ -51,6 +53,7 @@ class ModuleTrack:
     status: str = 'ok'
     message: str = ''
     steps: int = 0
+    passages: tuple = ()
 
 
 class ModulePath:
@@ -243,4 +246,5 @@ def track_module(start: ModuleParams, end: ModuleParams, theta,
                   for e in result.events)
     reached = end if result.s == 1.0 else path.params(result.s)
     return ModuleTrack(final=equilibrium_at(reached, result.state), end=reached, jumps=jumps,
-                       status=result.status, message=result.message, steps=result.steps)
+                       status=result.status, message=result.message, steps=result.steps,
+                       passages=tuple(path.params(s) for s, _ in result.passages))

@@ -348,31 +348,24 @@ class _Tracker:
                     continue
                 if arc is not None:
                     found = arc[1]
+            moved = None
             if found is not None and found[1] <= s_end:
                 # at a linkage limit the flow of land() stalls: cross it first
-                landing, s_land, event = self.through_linkage_limit(found[2], found[1], s_end)
+                moved = self.through_linkage_limit(found[2], found[1], s_end)
                 try:
-                    if landing is None:
-                        landing, s_land, event = self.land(*found, s_end)
+                    moved = moved or self.land(*found, s_end)
                 except TrackingError as error:
                     return self.result(y, s, eigenvalues, events, 'failed', str(error))
-                if event is not None:
-                    events.append(event)
-                y, s = landing, s_land
-                eigenvalues = self.eigenvalues(y, s)
-                self.rescale(eigenvalues)
-                ds, rate = 1.0, None
-                continue
-            if ds <= cfg.min_step:
-                landing, s_land, event = self.through_linkage_limit(y, s, s_end)
-                if landing is None:
-                    landing, s_land, event = self.end_at_rounding(y, s, s_end)
-                if landing is None:
+            elif ds <= cfg.min_step:
+                moved = (self.through_linkage_limit(y, s, s_end)
+                         or self.end_at_rounding(y, s, s_end))
+                if moved is None:
                     return self.result(y, s, eigenvalues, events, 'failed',
                                        self.underflow_reason(y, s, reason))
+            if moved is not None:       # past the event (or limit): go on from the landing
+                y, s, event = moved
                 if event is not None:
                     events.append(event)
-                y, s = landing, s_land
                 eigenvalues = self.eigenvalues(y, s)
                 self.rescale(eigenvalues)
                 ds, rate = 1.0, None
@@ -542,7 +535,7 @@ class _Tracker:
     # -- linkage limits (constrained problems) ------------------------------------
     def through_linkage_limit(self, y, s, s_end):
         """Carry the minimum across a linkage limit: (state, s, None) just past it, or
-        (None, None, None) where the state is not at one or does not go on continuously.
+        ``None`` where the state is not at one or does not go on continuously.
 
         At a linkage limit (the problem's optional ``linkage_limit(y, s)``: a constraint
         whose gradient vanishes, e.g. a module folded flat onto its chord) two branches
@@ -556,11 +549,11 @@ class _Tracker:
         shrinks 100-fold (to 0.3 of its distance or less, as a square root does)."""
         check = getattr(self.problem, 'linkage_limit', None)
         if check is None or s >= s_end or not check(y, s):
-            return None, None, None
+            return None
         offset = min(self.settings.linkage_offset, s_end - s)
         near = self.nearest_minimum(y, s + offset)
         if near is None:
-            return None, None, None
+            return None
         # where the minimum goes on, it is ~0.1 as far at 0.01 of the offset (a square
         # root); an equilibrium there that is not clearly unstable will do (another
         # module may be at its own pitchfork at the same s, e.g. a neck of equal modules)
@@ -572,13 +565,14 @@ class _Tracker:
         if closer is None:
             closer = self.nearest_minimum(y, s_closer)
         distance = self.separation(near, y)
-        if closer is None or self.separation(closer, y) > 0.3 * distance + self.settings.same_state_tol:
-            return None, None, None
+        if (closer is None
+                or self.separation(closer, y) > 0.3 * distance + self.settings.same_state_tol):
+            return None
         return near, s + offset, None
 
     def end_at_rounding(self, y, s, s_end):
         """The branch ends within rounding of (y, s): land as from a critical point there,
-        (state, s, event or None), or (None, None, None).
+        (state, s, event or None), or ``None``.
 
         A fold approached by a command a few 1e-7 long is reached to ~1e-12 of the
         parameter, where lambda_min (a square root of the distance) is still ~1e-6 of
@@ -587,12 +581,12 @@ class _Tracker:
         critical point; land() still decides whether the mechanism jumps."""
         lam, psi = self.critical(y, s)
         if not 0.0 < lam < self.settings.rounding_critical:
-            return None, None, None
+            return None
         kind = FOLD if self.orthogonality(y, s, psi) > self.settings.branch_tol else BRANCH_POINT
         try:
             return self.land(kind, s, y, s_end)
         except TrackingError:
-            return None, None, None
+            return None
 
     def underflow_reason(self, y, s, reason):
         """Why the steps underflowed: a linkage limit the minimum does not cross

@@ -53,6 +53,14 @@ class Neck:
         h.spin_until(lambda: len(h.joint_states) > n and predicate(self.joints()[0]), what=what)
         return self.joints()
 
+    def load_head(self, per_node):
+        """A vertical head load (N per head node, down) in one atomic parameter set: one
+        symmetric path.  Returns the (stack, equilibrium) after it."""
+        result = self.h.node.set_parameters_atomically(
+            [Parameter(f'm2.force_{w}', value=[0.0, -per_node]) for w in ('a3', 'a4')])
+        assert result.successful
+        return self.h.node.stack_state()
+
     def statuses(self):
         """The last equilibrium status of every module."""
         last = {}
@@ -183,10 +191,7 @@ def test_a_sideways_buckling_under_a_heavy_head_publishes_no_jump(neck):
     ``jumps``, none counted, joint_states reach the buckled state."""
     n = neck()
     h = n.h
-    result = h.node.set_parameters_atomically([Parameter('m2.force_a3', value=[0.0, -3.5]),
-                                               Parameter('m2.force_a4', value=[0.0, -3.5])])
-    assert result.successful
-    stack, eq = h.node.stack_state()
+    stack, eq = n.load_head(3.5)
     expected = track_stack(stack, stack.with_module(1, rho=0.07), eq)
     assert expected.jumps == () and len(expected.passages) == 1
     assert 0.07 < expected.passages[0].stack.modules[1].rho < 0.085

@@ -336,10 +336,7 @@ def test_softening_a_module_under_a_heavy_head_buckles_it_continuously(neck):
     branch point and turns sideways smoothly: no message on ``jumps``, none counted."""
     n = neck()
     h = n.h
-    result = h.node.set_parameters_atomically([Parameter('m2.force_a3', value=[0.0, -3.5]),
-                                               Parameter('m2.force_a4', value=[0.0, -3.5])])
-    assert result.successful
-    stack0, eq0 = h.node.stack_state()
+    stack0, eq0 = n.load_head(3.5)
     assert not h.node.counters['jumps_total']
     soft = stack0.with_module(1, ka=200.0, kb=200.0, kc=200.0)
     expected = track_stack(stack0, soft, eq0)            # found with the core first

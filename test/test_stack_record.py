@@ -45,3 +45,20 @@ def test_nodes_and_head_are_those_of_the_angles(moves):
         position, angle = sim.head()
         np.testing.assert_allclose(position, 0.5 * (a3 + a4), rtol=0, atol=1e-12)
         assert angle == state.head_angle
+
+
+def test_scales_carried_along_actuator_commands_equal_fresh_ones():
+    """A path whose rods and springs stay still hands its scales on to its end (the next
+    command's start): they are the ones computed afresh, and a design change computes new."""
+    from tensegrity_ros.core.stack import Stack, StackPath
+    start = Stack(tuple(NECK))
+    ends = [Stack(tuple(m.with_rho(m.rho + 1e-4 * k) for m in NECK)) for k in (1, 2, 3)]
+    ends.append(Stack(tuple(m.with_(L1=0.13) for m in ends[-1].modules)))
+    for end in ends:
+        carried = StackPath(start, end)
+        fresh = StackPath(Stack(start.modules), Stack(end.modules))
+        assert (carried.l_ref, carried.f_ref) == (fresh.l_ref, fresh.f_ref)
+        np.testing.assert_array_equal(carried.state_weights, fresh.state_weights)
+        start = end
+    fresh = StackPath(Stack(start.modules), Stack(start.modules))  # from the changed design
+    assert StackPath(start, start).l_ref == fresh.l_ref != StackPath(Stack(tuple(NECK)), start).l_ref

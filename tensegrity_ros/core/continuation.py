@@ -17,9 +17,12 @@ only between two verified states of the branch where the test function
 lambda_min changes sign, or where the branch turns back in s; it is located
 there by a bracketed secant (to ~1e-12 in s) and kept only if lambda_min ~ 0.
 It is a fold where the critical mode ``psi`` is not orthogonal to ``F_s``, else
-a branch point.  The mechanism lands where an overdamped gradient flow with the
-parameters frozen just past the event takes it; where the landing closes in on
-the departure as that offset shrinks, the minimum simply goes on (no event).
+a branch point.  At a supercritical branch point (the bifurcated branch lies past
+s* and is stable) the state follows the buckled minimum: no event, the branch point
+is listed in ``Track.passages``.  Otherwise the mechanism lands where an
+overdamped gradient flow with the parameters frozen just past the event takes it;
+where the landing closes in on the departure as that offset shrinks, the minimum
+simply goes on (no event).
 Tolerances follow the local stiffness scale, so every magnitude works.
 """
 from __future__ import annotations
@@ -352,31 +355,24 @@ class _Tracker:
                     continue
                 if arc is not None:
                     found = arc[1]
+            moved = None
             if found is not None and found[1] <= s_end:
                 # at a linkage limit the flow of land() stalls: cross it first
-                landing, s_land, event = self.through_linkage_limit(found[2], found[1], s_end)
+                moved = self.through_linkage_limit(found[2], found[1], s_end)
                 try:
-                    if landing is None:
-                        landing, s_land, event = self.land(*found, s_end)
+                    moved = moved or self.land(*found, s_end)
                 except TrackingError as error:
                     return self.result(y, s, eigenvalues, events, 'failed', str(error))
-                if event is not None:
-                    events.append(event)
-                y, s = landing, s_land
-                eigenvalues = self.eigenvalues(y, s)
-                self.rescale(eigenvalues)
-                ds, rate = 1.0, None
-                continue
-            if ds <= cfg.min_step:
-                landing, s_land, event = self.through_linkage_limit(y, s, s_end)
-                if landing is None:
-                    landing, s_land, event = self.end_at_rounding(y, s, s_end)
-                if landing is None:
+            elif ds <= cfg.min_step:
+                moved = (self.through_linkage_limit(y, s, s_end)
+                         or self.end_at_rounding(y, s, s_end))
+                if moved is None:
                     return self.result(y, s, eigenvalues, events, 'failed',
                                        self.underflow_reason(y, s, reason))
+            if moved is not None:       # past the event (or limit): go on from the landing
+                y, s, event = moved
                 if event is not None:
                     events.append(event)
-                y, s = landing, s_land
                 eigenvalues = self.eigenvalues(y, s)
                 self.rescale(eigenvalues)
                 ds, rate = 1.0, None
@@ -547,7 +543,7 @@ class _Tracker:
     # -- linkage limits (constrained problems) ------------------------------------
     def through_linkage_limit(self, y, s, s_end):
         """Carry the minimum across a linkage limit: (state, s, None) just past it, or
-        (None, None, None) where the state is not at one or does not go on continuously.
+        ``None`` where the state is not at one or does not go on continuously.
 
         At a linkage limit (the problem's optional ``linkage_limit(y, s)``: a constraint
         whose gradient vanishes, e.g. a module folded flat onto its chord) two branches
@@ -561,11 +557,11 @@ class _Tracker:
         shrinks 100-fold (to 0.3 of its distance or less, as a square root does)."""
         check = getattr(self.problem, 'linkage_limit', None)
         if check is None or s >= s_end or not check(y, s):
-            return None, None, None
+            return None
         offset = min(self.settings.linkage_offset, s_end - s)
         near = self.nearest_minimum(y, s + offset)
         if near is None:
-            return None, None, None
+            return None
         # where the minimum goes on, it is ~0.1 as far at 0.01 of the offset (a square
         # root); an equilibrium there that is not clearly unstable will do (another
         # module may be at its own pitchfork at the same s, e.g. a neck of equal modules)
@@ -577,13 +573,14 @@ class _Tracker:
         if closer is None:
             closer = self.nearest_minimum(y, s_closer)
         distance = self.separation(near, y)
-        if closer is None or self.separation(closer, y) > 0.3 * distance + self.settings.same_state_tol:
-            return None, None, None
+        if (closer is None
+                or self.separation(closer, y) > 0.3 * distance + self.settings.same_state_tol):
+            return None
         return near, s + offset, None
 
     def end_at_rounding(self, y, s, s_end):
         """The branch ends within rounding of (y, s): land as from a critical point there,
-        (state, s, event or None), or (None, None, None).
+        (state, s, event or None), or ``None``.
 
         A fold approached by a command a few 1e-7 long is reached to ~1e-12 of the
         parameter, where lambda_min (a square root of the distance) is still ~1e-6 of
@@ -592,12 +589,12 @@ class _Tracker:
         critical point; land() still decides whether the mechanism jumps."""
         lam, psi = self.critical(y, s)
         if not 0.0 < lam < self.settings.rounding_critical:
-            return None, None, None
+            return None
         kind = FOLD if self.orthogonality(y, s, psi) > self.settings.branch_tol else BRANCH_POINT
         try:
             return self.land(kind, s, y, s_end)
         except TrackingError:
-            return None, None, None
+            return None
 
     def underflow_reason(self, y, s, reason):
         """Why the steps underflowed: a linkage limit the minimum does not cross

@@ -298,10 +298,11 @@ class Simulator:
     def rhos_refusal(self, targets):
         """What :meth:`command_rhos` would refuse in ``targets`` {index: rho} (a refused
         :class:`Outcome`), or None; changes nothing."""
+        slots = self._slots
         for index, rho in targets.items():
-            refusal = self._rho_refusal(index, rho)
-            if refusal is not None:
-                return refusal
+            limits = slots[index].limits
+            if not (math.isfinite(rho) and limits.rho_min <= rho <= limits.rho_max):
+                return self._rho_refusal(index, rho)     # (the reason and its message)
         return None
 
     def force_refusal(self, index, node, force):

@@ -292,6 +292,14 @@ class _Values:
             self._scales = (l_ref, max(self.k.tolist()) * l_ref, weights)
             return self._scales
 
+    @staticmethod
+    def share_scales(one, zero):
+        """Give ``one`` the scales of ``zero`` (same rods and springs: see :meth:`scales`)."""
+        try:
+            one._scales = zero._scales
+        except AttributeError:
+            pass
+
     @classmethod
     def difference(cls, top, one, zero):
         """one - zero: the rates along s of a straight path (no chord_squares)."""
@@ -429,6 +437,10 @@ class StackPath:
         # which parameter groups move along the path (a still group adds nothing to d/ds)
         changes, layout = rate.data.tolist(), top.value_layout     # (Python: a few floats)
         self._moving = {name: any(changes[layout[name]]) for name in ('rod', 'k', 'rod_loads')}
+        if not (self._moving['rod'] or self._moving['k']):
+            # the scales depend on rods and springs only: the end, the next command's
+            # start, has these very ones (a stream of actuator commands computes them once)
+            _Values.share_scales(one, zero)
         self._values = {0.0: zero, 1.0: one}
         self._point = None
 

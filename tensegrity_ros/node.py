@@ -54,7 +54,7 @@ from tensegrity_ros.joint_state_names import NamesAndPositions, exact_names
 from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.params_file import ConfigError, check_parameter_file
 from tensegrity_ros.core.command_coalescing import LatestCommands, force_key, target_key
-from tensegrity_ros.core.events import Deferred, Jump, JumpAhead, TrackingFailure
+from tensegrity_ros.core.events import Deferred, Jump, JumpAhead, Passage, TrackingFailure
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.simulator import Simulator
 from tensegrity_ros.core.stack import Stack
@@ -644,6 +644,8 @@ class TensegrityNode(Node):
                 self._report_jump_ahead(event)
             elif isinstance(event, Deferred):
                 self._report_deferred(event)
+            elif isinstance(event, Passage):
+                self._report_passage(event)
         if jumped:
             self._publish_statuses()
 
@@ -656,6 +658,14 @@ class TensegrityNode(Node):
         what = 'jump' if len(self._names) == 1 else 'stack jump'
         self._throttled('jump').warning(f'{m}: {what} ({jump.cause}): {msg.message}',
                                         throttle_duration_sec=WARN_THROTTLE_SEC)
+
+    def _report_passage(self, passage):
+        """A continuous buckling is no jump (nothing on ``jumps``), but the state left a
+        symmetric branch for one side: say so once, at INFO."""
+        m = self._names[passage.module]
+        rhos = ', '.join(f'{name} rho={p.rho:.6g}' for name, p in zip(self._names, passage.modules))
+        self.get_logger().info(f'{m}: passed a branch point continuously ({passage.cause}) at '
+                               f'{rhos}: the mechanism buckled smoothly to one side, no jump')
 
     def _report_tracking_failure(self, failure):
         self._count_and_warn('tracking_failures', 'tracking',

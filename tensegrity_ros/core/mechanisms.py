@@ -24,13 +24,15 @@ from .tracking import settle, track_module
 @dataclass(frozen=True)
 class Motion:
     """What one tracked path did: the verified ``final`` state, the module parameters
-    ``end`` it holds for (the commanded end unless ``status`` is ``failed``), the jumps."""
+    ``end`` it holds for (the commanded end unless ``status`` is ``failed``), the jumps,
+    and ``passages``: every module's parameters at each branch point passed continuously."""
 
     final: object
     end: tuple
     jumps: tuple
     status: str
     message: str
+    passages: tuple = ()
 
 
 class ModuleView:
@@ -87,7 +89,8 @@ class OneModule:
         track = track_module(start[0], end[0], state.theta)
         jumps = [(j.kind, j.s, (j.params,), np.array([j.from_theta]), np.array([j.to_theta]),
                   j.ambiguous) for j in track.jumps]
-        return Motion(track.final, (track.end,), jumps, track.status, track.message)
+        passages = tuple((params,) for params in track.passages)
+        return Motion(track.final, (track.end,), jumps, track.status, track.message, passages)
 
     def views(self, modules, state):
         return (state,)
@@ -154,7 +157,9 @@ class Neck:
         track = track_stack(start, self._last[1], state)
         jumps = [(j.kind, j.s, j.stack.modules, j.from_theta, j.to_theta, j.ambiguous)
                  for j in track.jumps]
-        return Motion(track.final, track.end.modules, jumps, track.status, track.message)
+        passages = tuple(p.stack.modules for p in track.passages)
+        return Motion(track.final, track.end.modules, jumps, track.status, track.message,
+                      passages)
 
     def views(self, modules, state):
         thetas, forces = state.theta.tolist(), state.actuator_forces.tolist()

@@ -35,7 +35,7 @@ import numpy as np
 from . import events as ev
 from .bounded_work import Job
 from .continuation import TrackingError
-from .events import Deferred, JumpAhead, Outcome, TrackingFailure
+from .events import Deferred, JumpAhead, Outcome, Passage, TrackingFailure
 from .mechanisms import make_jump, mechanism_for
 from .module import InvalidParameterError, ModuleParams
 from .supported_range import check_supported
@@ -554,15 +554,18 @@ class Simulator:
         if not eigenvalues[0] > DEFINITENESS_TOL * abs(eigenvalues[-1]):
             return self._failed(trigger, f'{cause}: tracker returned an unstable state')
         self._set_state(motion.end, motion.final)
-        jumps = tuple(self._record_jump(raw, trigger, cause) for raw in motion.jumps)
+        # passages first (a module's passage carries no s to order it by), then the jumps
+        events = tuple(Passage(modules=tuple(modules), module=trigger, cause=cause)
+                       for modules in motion.passages)
+        events += tuple(self._record_jump(raw, trigger, cause) for raw in motion.jumps)
         if motion.status != 'ok':
             failed = self._failed(trigger, f'{cause}: stopped at {self.names[trigger]} '
                                            f'rho={self.modules[trigger].rho!r}: '
                                            f'{motion.message}')
-            return Outcome(status=ev.FAILED, events=jumps + failed.events)
+            return Outcome(status=ev.FAILED, events=events + failed.events)
         for slot in self._slots:
             slot.tracking = 'ok'
-        return Outcome(events=jumps)
+        return Outcome(events=events)
 
     def _failed(self, index, text):
         self._slots[index].tracking = text

@@ -20,6 +20,11 @@ Nothing subscribes, so no publication leaves the process; DDS delivery is
 bench_node_latency.py's business.  Medians over ``--commands`` (default 2000) after a
 warm-up.  ``PYTHONPATH=<another checkout>`` measures another version of the node.
 
+BENCH_CLOCK=cpu times with this thread's CPU clock instead of the wall clock (a loaded
+machine adds to the wall clock the time spent waiting for a CPU).  Also printed: the
+Python and C function calls per command of each (cProfile's count over 200 commands):
+a figure the load does not change, by area (ROS layer, simulator, stack tracker).
+
     python benchmarks/bench_node_command_path.py
 """
 import argparse
@@ -35,6 +40,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_node_latency import NECK_AMPLITUDE, NECK_CONFIG, NECK_PERIOD  # noqa: E402
 
 WARM_UP = 200
+CLOCK = time.thread_time if os.environ.get('BENCH_CLOCK') == 'cpu' else time.perf_counter
+#: Where a function lives -> the area its calls are counted in (first match wins).
+AREAS = (('stack tracker', ('core/stack', 'core/continuation', 'numpy', 'scipy')),
+         ('simulator', ('core/',)),
+         ('ROS layer', ('tensegrity_ros/', 'rclpy', '_msgs/')))
 
 
 def neck_commands(modules, start_rhos, count):
@@ -73,13 +83,30 @@ def _ros_layer_alone(node, callback, commands):
     try:
         times = []
         for i, (raw, _) in enumerate(commands):
-            t0 = time.perf_counter()
+            t0 = CLOCK()
             callback(raw)
             if i >= WARM_UP:
-                times.append((time.perf_counter() - t0) * 1e6)
+                times.append((CLOCK() - t0) * 1e6)
         return times
     finally:
         del node.simulator.command_rhos
+
+
+def _calls(callback, raws):
+    """{area: function calls per call of ``callback``} over ``raws`` (cProfile's count)."""
+    import cProfile
+    import pstats
+    profile = cProfile.Profile()
+    profile.enable()
+    for raw in raws:
+        callback(raw)
+    profile.disable()
+    counts = {}
+    for (filename, _, _), (_, calls, _, _, _) in pstats.Stats(profile).stats.items():
+        area = next((name for name, marks in AREAS if any(m in filename for m in marks)),
+                    'Python and C built-ins')
+        counts[area] = counts.get(area, 0) + calls / len(raws)
+    return counts
 
 
 def measure(config, count):
@@ -106,13 +133,13 @@ def measure(config, count):
         times = {'node': [], 'simulator': [], 'relay': []}
         before = node.counters['commands_processed']
         for i, (raw, targets) in enumerate(commands):
-            t0 = time.perf_counter()
+            t0 = CLOCK()
             callback(raw)
-            t1 = time.perf_counter()
+            t1 = CLOCK()
             twin.command_rhos(targets, 0)
-            t2 = time.perf_counter()
+            t2 = CLOCK()
             relay_cb(raw)
-            t3 = time.perf_counter()
+            t3 = CLOCK()
             if i >= WARM_UP:
                 for key, dt in zip(times, (t1 - t0, t2 - t1, t3 - t2)):
                     times[key].append(dt * 1e6)
@@ -121,7 +148,10 @@ def measure(config, count):
         if processed != 2 * (WARM_UP + count):
             raise RuntimeError(f'the node processed {processed} of {2 * (WARM_UP + count)} '
                                f'commands')
-        return times
+        more = neck_commands(node.modules, [p.rho for p in start_modules], 200)
+        calls = {'node': _calls(callback, [raw for raw, _ in more]),
+                 'relay': _calls(relay_cb, [raw for raw, _ in more])}
+        return times, calls
     finally:
         relay.destroy_node()
         node.destroy_node()
@@ -133,14 +163,16 @@ def main(argv=None):
     parser.add_argument('--config', type=Path, default=NECK_CONFIG)
     parser.add_argument('--commands', type=int, default=2000)
     args = parser.parse_args(argv)
-    times = measure(args.config, args.commands)
+    times, calls = measure(args.config, args.commands)
     med = {k: statistics.median(v) for k, v in times.items()}
     p90 = {k: statistics.quantiles(v, n=10)[-1] for k, v in times.items()}
     import tensegrity_ros
     print(f'node command path ({args.config.name}, {args.commands} commands, in-process, '
           f'{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}; tensegrity_ros from '
           f'{Path(tensegrity_ros.__file__).parent})')
-    print(f'{"per command (us)":<36} {"median":>8} {"p90":>8}')
+    clock = 'CPU time of this thread' if CLOCK is time.thread_time else 'wall clock'
+    print(f"per command (us, {clock})")
+    print(f'{"":<36} {"median":>8} {"p90":>8}')
     for key, label in (('node', 'node: joint_commands callback'),
                        ('simulator', 'simulator.command_rhos (inside it)'),
                        ('ros layer', 'ROS layer alone (simulator stubbed)'),
@@ -148,6 +180,9 @@ def main(argv=None):
         print(f'{label:<36} {med[key]:>8.1f} {p90[key]:>8.1f}')
     print(f'{"node - simulator":<36} {med["node"] - med["simulator"]:>8.1f}')
     print(f'ROS layer alone / relay callback: {med["ros layer"] / med["relay"]:.2f}')
+    for key in ('node', 'relay'):
+        split = ', '.join(f'{area} {n:.0f}' for area, n in sorted(calls[key].items()))
+        print(f'function calls per command, {key}: {sum(calls[key].values()):.0f} ({split})')
     return 0
 
 

@@ -48,6 +48,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / 'config' / 'default.yaml'
 HARD_LIMIT_S = 240.0
+#: An answer later than this (us) counts as late: a process this far behind the stream
+#: works off a backlog (the relay queues every command; the node coalesces instead).
+LATE_US = 10_000
 
 
 def _ros_env():
@@ -295,7 +298,8 @@ class Driver:
             if not lat:
                 return float('nan')
             return lat[min(len(lat) - 1, int(round(q * (len(lat) - 1))))]
-        return {'sent': len(values), 'lost': lost, 'p50_us': pct(0.5), 'p90_us': pct(0.9),
+        return {'sent': len(values), 'lost': lost, 'late': sum(1 for t in lat if t > LATE_US),
+                'p50_us': pct(0.5), 'p90_us': pct(0.9),
                 'p99_us': pct(0.99), 'max_us': lat[-1] if lat else float('nan'),
                 'mean_us': sum(lat) / len(lat) if lat else float('nan')}
 
@@ -313,7 +317,8 @@ def _accounted(before, after, sent):
     many it coalesced, and how many it neither processed, coalesced nor rejected."""
     delta = {k: after.get(k, 0) - before.get(k, 0) for k in
              ('commands_processed', 'commands_coalesced', 'rejected_total')}
-    return {'coalesced': delta['commands_coalesced'], 'untraced': sent - sum(delta.values())}
+    return {'coalesced': delta['commands_coalesced'], 'rejected': delta['rejected_total'],
+            'untraced': sent - sum(delta.values())}
 
 
 def measure_load(driver, rates, seconds, bursts, burst_rate, base):
@@ -570,7 +575,8 @@ def neck_main(argv=None):
     node's ``coalesced`` ones were acted on through a later command that waited with them
     (the node fell behind and tracked only the latest target), and ``untraced`` = sent -
     processed - coalesced - rejected were lost without a trace (0 unless the transport
-    dropped them).  Target: every command answered (nothing coalesced or lost: the node
+    dropped them); ``late`` answers came more than LATE_US after their command: the relay
+    never coalesces, so when it falls behind it shows here (and in p99), not as unanswered.  Target: every command answered (nothing coalesced or lost: the node
     keeps up at 1 kHz) and node p50 within 2x the relay's, in every run."""
     parser = argparse.ArgumentParser(description=neck_main.__doc__.split('\n')[0])
     parser.add_argument('--neck', action='store_true', help='run the neck case (this one)')
@@ -636,15 +642,22 @@ def _print_neck(runs, args):
           f'(+-{NECK_AMPLITUDE * 1e3:g} mm); latency command -> joint_states (us); '
           f'{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}; node executor '
           f'{args.node_executor}')
-    print('unanswered = no joint_states reported the command; of those, coalesced = acted '
-          'on through a later command (node behind), untraced = lost (node /diagnostics)')
-    print(f'{"run":>3} {"process":<17} {"sent":>6} {"unanswered":>10} {"coalesced":>9} '
-          f'{"untraced":>8} {"p50":>8} {"p90":>8} {"p99":>8} {"max":>9} {"cpu/cmd":>8}')
+    print('every command sent is one of: answered (a joint_states reported it; late = more '
+          f'than {LATE_US / 1000:g} ms after it was sent, a backlog) or unanswered; the '
+          'node\'s unanswered split by its /diagnostics: coalesced = acted on through a later '
+          'command (node behind), rejected, untraced = lost without a trace, unseen = '
+          'processed but no joint_states of it arrived')
+    print(f'{"run":>3} {"process":<17} {"sent":>6} {"answered":>8} {"late":>6} '
+          f'{"unanswered":>10} {"coalesced":>9} {"rejected":>8} {"untraced":>8} {"unseen":>6} '
+          f'{"p50":>8} {"p90":>8} {"p99":>8} {"max":>9} {"cpu/cmd":>8}')
     met_runs, ratios = 0, []
     for i, stats in enumerate(runs):
         for t, st in stats.items():
-            print(f'{i:>3} {t:<17} {st["sent"]:>6} {st["lost"]:>10} '
-                  f'{st.get("coalesced", "-"):>9} {st.get("untraced", "-"):>8} '
+            unseen = (st['lost'] - st['coalesced'] - st['rejected'] - st['untraced']
+                      if 'coalesced' in st else '-')
+            print(f'{i:>3} {t:<17} {st["sent"]:>6} {st["sent"] - st["lost"]:>8} '
+                  f'{st["late"]:>6} {st["lost"]:>10} {st.get("coalesced", "-"):>9} '
+                  f'{st.get("rejected", "-"):>8} {st.get("untraced", "-"):>8} {unseen:>6} '
                   f'{st["p50_us"]:>8.0f} {st["p90_us"]:>8.0f} {st["p99_us"]:>8.0f} '
                   f'{st["max_us"]:>9.0f} {st["cpu_us_per_command"]:>8.0f}')
         node, relay = stats['bench_neck_node'], stats['bench_neck_relay']

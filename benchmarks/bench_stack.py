@@ -13,6 +13,11 @@ command, with:
   test/stack_cartesian_reference.py) on the generic tracker;
 * module (N = 1 only): the single-module tracker ``track_module`` on the same move.
 
+Then the floor of a verified small step for N = 3 (``floor``): the parts any
+verified step needs, each timed alone in a tight loop (so cheaper than in the
+step, where the caches are colder), summed, beside the naive root and the whole
+step timed the same way.
+
 Each command is timed ``REPEAT`` times (env BENCH_REPEAT, default 3) and the best
 kept (the machine is shared; the best of a few is the cost of the code, not of the
 neighbours); medians and p90 are over the commands.  BENCH_CLOCK=cpu times with this
@@ -23,6 +28,7 @@ module tracker.
 
     python benchmarks/bench_stack.py
 """
+import math
 import os
 import statistics
 import sys
@@ -33,7 +39,8 @@ import numpy as np
 from scipy.optimize import root
 
 from tensegrity_ros.core import ModuleParams, continuation, track_module
-from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
+from tensegrity_ros.core.stack import Stack, StackPath, _record, settle_stack, track_stack
+from tensegrity_ros.core.stack_fast_step import _dgesv, _dgetrf, _start_point
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 from stack_cartesian_reference import CartesianStackPath  # noqa: E402  (the "before")
@@ -109,6 +116,54 @@ def run(n, rng):
     return times, disagree, steps
 
 
+def tight(fn, number=400, rounds=15):
+    """Best per-call time (us) of ``fn`` over ``rounds`` loops of ``number`` calls."""
+    best = math.inf
+    for _ in range(rounds):
+        t0 = CLOCK()
+        for _ in range(number):
+            fn()
+        best = min(best, (CLOCK() - t0) / number)
+    return best * 1e6
+
+
+def floor(n=3):
+    """The parts every verified small step needs, timed alone, against the naive root."""
+    stack = neck(n)
+    state = settle_stack(stack, np.full((n, 2), 0.72))
+    state = track_stack(stack, stack.with_module(0, rho=0.751), state).final
+    stack = stack.with_module(0, rho=0.751)
+    moved = stack.with_module(n - 1, rho=0.752)
+    path = StackPath(stack, moved)
+    y, y1 = state.state, track_stack(stack, moved, state).final.state
+    start = _start_point(path, y, state)
+    fresh = lambda: path.evaluate(y1, 1.0)
+    point = tight(fresh)
+
+    def unrated():                  # the start as a command finds it: its s-rates not made
+        start.rates = None
+        return start
+
+    parts = {
+        'path set-up': tight(lambda: StackPath(stack, moved)),
+        'tangent (J, dF/ds, solve)': tight(lambda: _dgesv(path.jacobian_at(start),
+                                                          path.residual_s_at(unrated()))),
+        '2 iterates (evaluate, residual)': 2 * tight(lambda: path.residual_at(fresh())),
+        'Jacobian + LU': tight(lambda: _dgetrf(path.jacobian_at(fresh()))) - point,
+        'reduced eigenproblem': tight(lambda: path.eigenvalues_at(fresh())) - point,
+        'energy check (E, dE/ds x 2)': tight(lambda: (path.energy_at(fresh()), path.energy_s_at(
+            fresh()), path.energy_s_at(unrated()))) - 2 * point,
+        'record': tight(lambda: _record(path, y1, 1.0, state.eigenvalues, 0.0, 0.0)),
+    }
+    total = sum(parts.values())
+    step = tight(lambda: track_stack(stack, moved, state))
+    root_time = tight(lambda: naive(stack, moved, y))
+    print(f'floor N = {n} (parts timed alone, us): ' + ', '.join(
+        f'{k} {v:.1f}' for k, v in parts.items()))
+    print(f'  sum {total:.1f} us; whole verified step {step:.1f} us; naive root {root_time:.1f} us; '
+          f'floor/naive {total / root_time:.2f}, step/naive {step / root_time:.2f}')
+
+
 def main():
     rng = np.random.default_rng(0)
     load = os.getloadavg()[0]
@@ -141,6 +196,7 @@ def main():
     ratio = medians[1]['tracker'] / medians[1]['module']
     print(f'target N = 1: within {MODULE_RATIO:g}x of the module tracker: '
           f'{"met" if ratio <= MODULE_RATIO else "MISSED"} ({ratio:.2f}x)')
+    floor()
 
 
 if __name__ == '__main__':

@@ -18,6 +18,7 @@ _PLAIN = {0x0000: '>', 0x0001: '<', 0x0006: '>', 0x0007: '<'}
 #: The XCDR1 ones (8-byte values aligned to 8; XCDR2 aligns them to 4).
 _XCDR1 = {0x0000: '>', 0x0001: '<'}
 _HEADER = 4          # encapsulation id and options precede the aligned body
+_NAMES_AT = _HEADER + 8     # header.frame_id, then the names, follow the stamp
 
 
 def exact_names(raw: bytes):
@@ -42,12 +43,37 @@ def names_and_positions(raw: bytes):
         return None
     try:
         names, offset = _names(raw, order)
-        positions, offset = _doubles(raw, offset, order)
-        for _ in ('velocity', 'effort'):
-            _, offset = _doubles(raw, offset, order, skip=True)
-        return names, positions
+        return names, _positions(raw, offset, order)
     except (struct.error, ValueError):
         return None
+
+
+class NamesAndPositions:
+    """:func:`names_and_positions` for a stream of messages: a controller sends the same
+    joints every time, so the bytes of the last message's frame_id and names are kept,
+    and a message that repeats them (one byte comparison) has only its positions read;
+    its names are then the very list returned before (do not change it)."""
+
+    def __init__(self):
+        self._kept = None   # (encapsulation bytes, frame_id + names bytes, names, offset, order)
+
+    def __call__(self, raw: bytes):
+        kept = self._kept
+        if kept is not None and raw.startswith(kept[0]) and raw.startswith(kept[1], _NAMES_AT):
+            names, offset, order = kept[2], kept[3], kept[4]
+        else:
+            order = _order(raw, _XCDR1)
+            if order is None:
+                return None
+            try:
+                names, offset = _names(raw, order)
+            except (struct.error, ValueError):
+                return None
+            self._kept = (raw[:_HEADER], raw[_NAMES_AT:offset], names, offset, order)
+        try:
+            return names, _positions(raw, offset, order)
+        except (struct.error, ValueError):
+            return None
 
 
 def _order(raw, encodings):
@@ -59,7 +85,7 @@ def _order(raw, encodings):
 
 def _names(raw, order):
     """(the name strings, the offset after them)."""
-    offset = _HEADER + 8                          # header.stamp: sec, nanosec
+    offset = _NAMES_AT                            # after header.stamp: sec, nanosec
     _, offset = _string(raw, offset, order)       # header.frame_id
     count, offset = _uint32(raw, offset, order)
     names = []
@@ -67,6 +93,14 @@ def _names(raw, order):
         name, offset = _string(raw, offset, order)
         names.append(name)
     return names, offset
+
+
+def _positions(raw, offset, order):
+    """The positions from ``offset`` (after the names); velocity and effort must follow."""
+    positions, offset = _doubles(raw, offset, order)
+    for _ in ('velocity', 'effort'):
+        _, offset = _doubles(raw, offset, order, skip=True)
+    return positions
 
 
 def _doubles(raw, offset, order, skip=False):

@@ -50,11 +50,11 @@ from visualization_msgs.msg import MarkerArray
 
 from tensegrity_ros import node_parameters as params
 from tensegrity_ros import ros_conversions as conv
-from tensegrity_ros.joint_state_names import exact_names, names_and_positions
+from tensegrity_ros.joint_state_names import NamesAndPositions, exact_names
 from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.params_file import ConfigError, check_parameter_file
 from tensegrity_ros.core.command_coalescing import LatestCommands, force_key, target_key
-from tensegrity_ros.core.events import Deferred, Jump, JumpAhead, TrackingFailure
+from tensegrity_ros.core.events import Deferred, Jump, JumpAhead, Passage, TrackingFailure
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.simulator import Simulator
 from tensegrity_ros.core.stack import Stack
@@ -153,9 +153,12 @@ class TensegrityNode(Node):
         self._sim = self._start_simulator()
         self._published_revision = None     # simulator revision of the last statuses
         self._last_statuses = [None] * len(self._names)
+        self._status_buffers = [conv.EquilibriumStatusBuffer() for _ in self._names]
         self._markers = [conv.ModuleMarkers(m) for m in self._names]
         self._head = conv.HeadPose()
         self._rho_joints = {f'{m}_rho': i for i, m in enumerate(self._names)}
+        self._read_command_bytes = NamesAndPositions()
+        self._kept_joint_indices = None     # (names, what _joint_indices found for them)
         self._js = conv.JointStateBuffer(self._names, velocity=self._dynamics)
         self._create_interfaces()
         self._name_checks = NAME_CHECKS
@@ -537,7 +540,7 @@ class TensegrityNode(Node):
         return read
 
     def _read_joint_commands(self, raw):
-        read = names_and_positions(raw)         # one pass over the bytes, names exact
+        read = self._read_command_bytes(raw)    # one pass over the bytes, names exact
         if read is None:                        # another encoding: rclpy reads it
             msg = deserialize_message(raw, JointState)
             read = exact_names(raw) or msg.name, msg.position
@@ -547,20 +550,37 @@ class TensegrityNode(Node):
         if len(names) != len(positions):
             return self._reject('size_mismatch', f'joint_commands: {len(names)} names but '
                                                  f'{len(positions)} positions')
-        targets = {}
-        for name, value in zip(names, positions):
-            index = self._rho_joints.get(name)
-            if index is None:
-                return self._reject('unknown_joint', f'joint_commands: unknown joint {shown(name)} '
-                                                     f'(commandable: {sorted(self._rho_joints)})')
-            if index in targets:
-                return self._reject('duplicate_joint', f'joint_commands: {shown(name)} given twice')
-            targets[index] = value
+        indices, problem = self._joint_indices(names)
+        if problem is not None:
+            return self._reject(*problem)
+        targets = dict(zip(indices, positions))
         refusal = self._sim.rhos_refusal(targets)
         if refusal is not None:
             return self._reject(refusal.reason, f'joint_commands: {refusal.message}')
         return target_key(targets), lambda: self._apply_targets(
             targets, 'joint_commands', 'joint_commands')
+
+    def _joint_indices(self, names):
+        """(the module index of every joint name, None), or (None, (reason, text)) if a
+        name is unknown or given twice; kept for the last list of names (a stream of
+        commands repeats the very list: :class:`NamesAndPositions`)."""
+        kept = self._kept_joint_indices
+        if kept is not None and kept[0] is names:
+            return kept[1]
+        indices, problem = [], None
+        for name in names:
+            index = self._rho_joints.get(name)
+            if index is None:
+                problem = ('unknown_joint', f'joint_commands: unknown joint {shown(name)} '
+                                            f'(commandable: {sorted(self._rho_joints)})')
+                break
+            if index in indices:
+                problem = ('duplicate_joint', f'joint_commands: {shown(name)} given twice')
+                break
+            indices.append(index)
+        found = (None, problem) if problem is not None else (indices, None)
+        self._kept_joint_indices = (names, found)
+        return found
 
     def _apply_targets(self, targets, source, cause):
         now = self._now_ns()
@@ -624,6 +644,8 @@ class TensegrityNode(Node):
                 self._report_jump_ahead(event)
             elif isinstance(event, Deferred):
                 self._report_deferred(event)
+            elif isinstance(event, Passage):
+                self._report_passage(event)
         if jumped:
             self._publish_statuses()
 
@@ -636,6 +658,14 @@ class TensegrityNode(Node):
         what = 'jump' if len(self._names) == 1 else 'stack jump'
         self._throttled('jump').warning(f'{m}: {what} ({jump.cause}): {msg.message}',
                                         throttle_duration_sec=WARN_THROTTLE_SEC)
+
+    def _report_passage(self, passage):
+        """A continuous buckling is no jump (nothing on ``jumps``), but the state left a
+        symmetric branch for one side: say so once, at INFO."""
+        m = self._names[passage.module]
+        rhos = ', '.join(f'{name} rho={p.rho:.6g}' for name, p in zip(self._names, passage.modules))
+        self.get_logger().info(f'{m}: passed a branch point continuously ({passage.cause}) at '
+                               f'{rhos}: the mechanism buckled smoothly to one side, no jump')
 
     def _report_tracking_failure(self, failure):
         self._count_and_warn('tracking_failures', 'tracking',
@@ -689,7 +719,7 @@ class TensegrityNode(Node):
         """equilibrium of every module (all N together, in module order), and stable if
         it changed."""
         for i, m in enumerate(self._names):
-            status = conv.equilibrium_status(
+            status = self._status_buffers[i].update(
                 name=f'{self.get_name()}: {m}', hardware_id=self._hardware_id, module=m,
                 status=self._sim.status(i))
             self._last_statuses[i] = status

@@ -144,6 +144,43 @@ LEVELS = {'ok': OK, 'warn': WARN, 'error': ERROR}
 def equilibrium_status(*, name, hardware_id, module, status):
     """``equilibrium`` DiagnosticStatus of one module from its simulator
     :class:`~tensegrity_ros.core.simulator.ModuleStatus` (values: msg_docs/equilibrium.md)."""
+    msg = DiagnosticStatus(level=LEVELS[status.level], name=name, message=status.message,
+                           hardware_id=hardware_id)
+    msg.values = key_values(_equilibrium_pairs(module, status))
+    return msg
+
+
+class EquilibriumStatusBuffer:
+    """The ``equilibrium`` status of one module, kept and filled in place.
+
+    A command stream makes the node republish every module's status at publish_rate (a
+    neck: 3 statuses of 34 values per tick); most values (the design, loads, counts) do
+    not change, so only the values that did are formatted again, into the message's own
+    ``KeyValue`` objects.  :attr:`msg` is the last status made (published as it is)."""
+
+    def __init__(self):
+        self.msg = None
+        self._values = ()           # the raw values behind msg's strings
+
+    def update(self, *, name, hardware_id, module, status):
+        """The status of ``status`` (what :func:`equilibrium_status` makes), in place."""
+        pairs = _equilibrium_pairs(module, status)
+        msg = self.msg
+        if msg is None:
+            self.msg = msg = equilibrium_status(name=name, hardware_id=hardware_id,
+                                                module=module, status=status)
+        else:
+            msg.level, msg.name, msg.message = LEVELS[status.level], name, status.message
+            msg.hardware_id = hardware_id
+            for kv, (_, value), old in zip(msg.values, pairs, self._values):
+                if type(value) is not type(old) or value != old:
+                    kv.value = fmt(value)
+        self._values = tuple(value for _, value in pairs)
+        return msg
+
+
+def _equilibrium_pairs(module, status):
+    """(key, value) of an ``equilibrium`` status, in the published order."""
     params, eq, last_jump = status.params, status.eq, status.last_jump
     found = status.operation_range
     if last_jump is None:
@@ -151,9 +188,7 @@ def equilibrium_status(*, name, hardware_id, module, status):
     else:
         last_kind, last_rho = last_jump.kind, float(last_jump.params.rho)
         last_s = float(last_jump.s)
-    msg = DiagnosticStatus(level=LEVELS[status.level], name=name, message=status.message,
-                           hardware_id=hardware_id)
-    msg.values = key_values((
+    return (
         ('module', module),
         ('stable', bool(eq.stable)),
         ('rho', params.rho),
@@ -188,8 +223,7 @@ def equilibrium_status(*, name, hardware_id, module, status):
         ('last_jump_s', last_s),
         ('jumps_total', status.jumps_total),
         ('tracking', status.tracking),
-    ))
-    return msg
+    )
 
 
 def _jump_message(*, name, hardware_id, jump, params, module, from_theta, to_theta, cause,

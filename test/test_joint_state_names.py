@@ -9,7 +9,7 @@ from hypothesis import given, settings, strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
-from tensegrity_ros.joint_state_names import exact_names, names_and_positions
+from tensegrity_ros.joint_state_names import NamesAndPositions, exact_names, names_and_positions
 
 NAMES = st.lists(st.text(st.characters(blacklist_characters='\x00',
                                        blacklist_categories=('Cs',)), max_size=12),
@@ -90,3 +90,46 @@ def test_xcdr2_is_left_to_rclpy():
 def test_malformed_bytes_give_none_or_a_reading_never_an_exception(raw):
     read = names_and_positions(raw)
     assert read is None or (isinstance(read[0], list) and isinstance(read[1], tuple))
+
+
+def _message(names, position, frame_id, stamp):
+    msg = JointState(name=names, position=position)
+    msg.header.frame_id = frame_id
+    msg.header.stamp.sec = stamp
+    return serialize_message(msg)
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.lists(st.tuples(st.sampled_from([['m0_rho'], ['m0_rho', 'm2_rho'], ['m0_rhp'],
+                                           ['m0_rho', 'm0_rho'], []]),
+                          DOUBLES, st.sampled_from(['', 'a', 'base']),
+                          st.integers(-5, 5), st.sampled_from([None, 0, 9, -8, 'xcdr2'])),
+                min_size=1, max_size=8))
+def test_a_stream_is_read_as_each_message_alone(stream):
+    """NamesAndPositions (names kept from the last message) reads every message of a
+    stream -- repeated or changed names, frame_ids and stamps, cut or XCDR2 bytes -- as
+    names_and_positions reads it alone."""
+    read = NamesAndPositions()
+    for names, position, frame_id, stamp, damage in stream:
+        raw = _message(names, position, frame_id, stamp)
+        if damage == 'xcdr2':
+            raw = struct.pack('>H', 0x0007) + raw[2:]
+        elif damage is not None:
+            raw = raw[:damage]
+        got, alone = read(raw), names_and_positions(raw)
+        assert (got is None) == (alone is None)
+        if got is not None:
+            assert got[0] == alone[0] and _same(got[1], alone[1])
+
+
+def test_repeated_names_are_not_read_again():
+    """A controller's stream (new stamps and positions, the same joints): the names come
+    back as the very list read from the first message, the positions as sent."""
+    read = NamesAndPositions()
+    first = read(_message(['m0_rho', 'm1_rho', 'm2_rho'], [0.09, 0.085, 0.08], '', 1))
+    for k in range(5):
+        positions = [0.09 + k * 1e-4, 0.085, 0.08 - k * 1e-4]
+        names, got = read(_message(['m0_rho', 'm1_rho', 'm2_rho'], positions, '', 2 + k))
+        assert names is first[0] and list(got) == positions
+    other = read(_message(['m0_rho', 'm2_rho'], [0.1, 0.2], '', 9))
+    assert other == (['m0_rho', 'm2_rho'], (0.1, 0.2))

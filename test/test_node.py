@@ -474,9 +474,13 @@ BAD_JOINT_COMMANDS = [
 
 def test_bad_joint_commands_are_dropped_and_counted(harness):
     h = harness().ready()
-    for reason, msg in BAD_JOINT_COMMANDS:
+    # each twice (reversed: the same names back to back): the node keeps what it read
+    # of the last names, a repeat must be refused and counted again
+    for reason, msg in BAD_JOINT_COMMANDS + BAD_JOINT_COMMANDS[::-1]:
         h.rejected(f'rejected_{reason}', lambda: h.jc_pub.publish(msg))
     assert h.node.module_state()[0].rho == 0.75
+    h.jc_pub.publish(JointState(name=['m0_rho'], position=[0.6]))    # now a good one
+    h.spin_until(lambda: h.joint_states[-1].position[0] == 0.6, what='rho 0.6')
 
 
 def test_bad_forces_are_dropped_and_counted(harness):

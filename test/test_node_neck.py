@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, Vector3
+from rcl_interfaces.msg import Log
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -205,6 +206,12 @@ def test_a_sideways_buckling_under_a_heavy_head_publishes_no_jump(neck):
                  and all(v['jumps_total'] == '0' for v in n.statuses().values()),
                  what='statuses after the buckling')
     assert not h.jumps and h.node.counters['jumps_total'] == 0
+    # said once on /rosout at INFO, with where it happened, and not as a warning
+    said = lambda: [m for m in h.log if 'passed a branch point continuously' in m.msg]  # noqa: E731
+    h.spin_until(said, what='the INFO line of the continuous buckling')
+    [line] = said()
+    rho = expected.passages[0].stack.modules[1].rho
+    assert line.level == Log.INFO and f'm1 rho={rho:.6g}' in line.msg and 'rho_cmd' in line.msg
 
 
 def test_head_load_jump_is_named_after_the_head_module(neck):

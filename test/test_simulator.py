@@ -13,7 +13,7 @@ from hypothesis import assume, given, settings, strategies as st
 
 import tensegrity_ros.core.mechanisms as mechanisms
 from tensegrity_ros.core import ModuleParams, TrackingError, equilibria, settle, track_module
-from tensegrity_ros.core.events import Jump, JumpAhead, TrackingFailure, combined
+from tensegrity_ros.core.events import Jump, JumpAhead, Passage, TrackingFailure, combined
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 
@@ -323,6 +323,9 @@ def test_a_neck_buckling_sideways_continuously_is_no_jump():
     assert expected.jumps == () and len(expected.passages) == 1
     outcome = finished(sim, sim.command_rho(1, 0.07, 0))
     assert not outcome.of_type(Jump) and not outcome.of_type(JumpAhead)
+    [passage] = outcome.of_type(Passage)           # said once, for the node's INFO line
+    assert (passage.module, passage.cause) == (1, 'rho_cmd')
+    assert passage.modules == expected.passages[0].stack.modules
     assert all(sim.status(i).jumps_total == 0 for i in range(3))
     np.testing.assert_allclose(sim.state.theta, expected.final.theta, atol=1e-9)
     assert abs(sim.state.head_angle) > 0.05 and verified_minimum(sim)
@@ -402,7 +405,8 @@ def test_the_flat_state_buckles_smoothly_without_warning_or_jump():
     end = sim.status(0).operation_range.lower
     assert (end.kind, end.rho) == ('branch_point', 1.0)
     outcome = sim.command_rho(0, 0.75, 0)
-    assert outcome.events == ()
+    [passage] = outcome.events                     # a Passage, not a jump
+    assert isinstance(passage, Passage) and passage.modules[0].rho == pytest.approx(1.0, abs=1e-9)
     upper = equilibria(ModuleParams(rho=0.75)).stable
     theta = sim.module(0)[1].theta
     assert min(wrapped(theta, e.theta) for e in upper) < 1e-9 and wrapped(theta, (0, 0)) > 0.5

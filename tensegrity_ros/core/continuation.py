@@ -111,6 +111,12 @@ class TrackerSettings:
     #: An arclength step is kept only if the branch direction turns less than this
     #: (cosine) over it: a sharper turn means the corrector reached another branch.
     arc_alignment: float = 0.9
+    #: Where steps underflow, a state with lambda_min below this (relative to the scale)
+    #: is a critical point reached to rounding (see ``_Tracker.end_at_rounding``).
+    rounding_critical: float = 1e-5
+    #: Past a linkage limit the minimum is looked for this far on (in s, and 100 times
+    #: closer, to see that it closes in: see ``_Tracker.through_linkage_limit``).
+    linkage_offset: float = 1e-6
     #: Wall-clock seconds one command may take before it gives up (None: no limit).
     time_budget: float | None = None
 
@@ -349,21 +355,28 @@ class _Tracker:
                     continue
                 if arc is not None:
                     found = arc[1]
+            moved = None
             if found is not None and found[1] <= s_end:
+                # at a linkage limit the flow of land() stalls: cross it first
+                moved = self.through_linkage_limit(found[2], found[1], s_end)
                 try:
-                    landing, s_land, event = self.land(*found, s_end)
+                    moved = moved or self.land(*found, s_end)
                 except TrackingError as error:
                     return self.result(y, s, eigenvalues, events, 'failed', str(error))
+            elif ds <= cfg.min_step:
+                moved = (self.through_linkage_limit(y, s, s_end)
+                         or self.end_at_rounding(y, s, s_end))
+                if moved is None:
+                    return self.result(y, s, eigenvalues, events, 'failed',
+                                       self.underflow_reason(y, s, reason))
+            if moved is not None:       # past the event (or limit): go on from the landing
+                y, s, event = moved
                 if event is not None:
                     events.append(event)
-                y, s = landing, s_land
                 eigenvalues = self.eigenvalues(y, s)
                 self.rescale(eigenvalues)
                 ds, rate = 1.0, None
                 continue
-            if ds <= cfg.min_step:
-                return self.result(y, s, eigenvalues, events, 'failed',
-                                   f'step size underflow at s={s!r} ({reason})')
             ds *= 0.25 if reason == 'indefinite' else 0.5
         return self.result(y, s, eigenvalues, events)
 
@@ -526,6 +539,104 @@ class _Tracker:
         ratio = self.orthogonality(y_star, s_star, psi)
         kind = FOLD if ratio > self.settings.branch_tol else BRANCH_POINT
         return kind, s_star, y_star
+
+    # -- linkage limits (constrained problems) ------------------------------------
+    def through_linkage_limit(self, y, s, s_end):
+        """Carry the minimum across a linkage limit: (state, s, None) just past it, or
+        ``None`` where the state is not at one or does not go on continuously.
+
+        At a linkage limit (the problem's optional ``linkage_limit(y, s)``: a constraint
+        whose gradient vanishes, e.g. a module folded flat onto its chord) two branches
+        of configurations cross, so the equilibrium equations are singular there even
+        where the state is a strict minimum: steps underflow or the branch seems to turn
+        back, and the landing flow stalls (its pull onto the constraints vanishes with
+        that gradient).  Just past it the minimum lies on one of the crossing branches,
+        ~sqrt(offset) away: the nearest verified minimum found by Newton from the state
+        moved along each state component and projected on the constraints.  It is the
+        mechanism going on (no jump) only if it closes in on the state as the offset
+        shrinks 100-fold (to 0.3 of its distance or less, as a square root does)."""
+        check = getattr(self.problem, 'linkage_limit', None)
+        if check is None or s >= s_end or not check(y, s):
+            return None
+        offset = min(self.settings.linkage_offset, s_end - s)
+        near = self.nearest_minimum(y, s + offset)
+        if near is None:
+            return None
+        # where the minimum goes on, it is ~0.1 as far at 0.01 of the offset (a square
+        # root); an equilibrium there that is not clearly unstable will do (another
+        # module may be at its own pitchfork at the same s, e.g. a neck of equal modules)
+        s_closer = s + 0.01 * offset
+        closer = self.newton(self.problem.project(y + 0.1 * (near - y), s_closer), s_closer)
+        if closer is not None and not self.eigenvalues(closer, s_closer)[0] > \
+                -self.settings.definiteness_tol * self.scale:
+            closer = None
+        if closer is None:
+            closer = self.nearest_minimum(y, s_closer)
+        distance = self.separation(near, y)
+        if (closer is None
+                or self.separation(closer, y) > 0.3 * distance + self.settings.same_state_tol):
+            return None
+        return near, s + offset, None
+
+    def end_at_rounding(self, y, s, s_end):
+        """The branch ends within rounding of (y, s): land as from a critical point there,
+        (state, s, event or None), or ``None``.
+
+        A fold approached by a command a few 1e-7 long is reached to ~1e-12 of the
+        parameter, where lambda_min (a square root of the distance) is still ~1e-6 of
+        the scale, above ``critical_tol``; no step of ``min_step`` goes on.  Where
+        lambda_min is that small (< ``rounding_critical``) the state is taken as the
+        critical point; land() still decides whether the mechanism jumps."""
+        lam, psi = self.critical(y, s)
+        if not 0.0 < lam < self.settings.rounding_critical:
+            return None
+        kind = FOLD if self.orthogonality(y, s, psi) > self.settings.branch_tol else BRANCH_POINT
+        try:
+            return self.land(kind, s, y, s_end)
+        except TrackingError:
+            return None
+
+    def underflow_reason(self, y, s, reason):
+        """Why the steps underflowed: a linkage limit the minimum does not cross
+        continuously (the rigid-chord model does not say where the mechanism goes: its
+        chord force grows without bound), or the failed step's reason."""
+        limit = getattr(self.problem, 'linkage_limit', lambda *_: '')(y, s)
+        if limit:
+            return (f'linkage limit at s={s!r}: {limit}; no minimum goes on continuously '
+                    f'past it, and the rigid-chord model does not say where the mechanism goes')
+        return f'step size underflow at s={s!r} ({reason})'
+
+    def nearest_minimum(self, y, s):
+        """The verified minimum at s nearest to ``y`` among those Newton reaches from y
+        moved by 1e-5 .. 1e-1 (step norm) along each weighted state component, both
+        ways, and projected; ties go to the lower energy.  ``None`` if there is none."""
+        problem, best = self.problem, None
+        weights = np.ones(problem.size) if self.weights is None else self.weights
+        moving = np.flatnonzero(weights)
+        # each component alone, then seeded random mixtures (several constraints at
+        # their limits at once need a combined move)
+        directions = np.zeros((len(moving), problem.size))
+        directions[np.arange(len(moving)), moving] = 1.0 / weights[moving]
+        mixed = np.random.default_rng(0).standard_normal((2 * len(moving), len(moving)))
+        mixtures = np.zeros((len(mixed), problem.size))
+        mixtures[:, moving] = mixed / weights[moving]
+        directions = np.vstack([directions, mixtures])
+        for direction in directions:
+            direction = direction / self.step_norm(direction)
+            for amplitude in (1e-5, 1e-4, 1e-3, 1e-2, 1e-1):
+                for sign in (1.0, -1.0):
+                    checkpoint()
+                    moved = y + sign * amplitude * direction
+                    try:
+                        found = self.newton(problem.project(moved, s), s)
+                    except np.linalg.LinAlgError:
+                        continue
+                    if found is None or not self.definite(self.eigenvalues(found, s)):
+                        continue
+                    key = (round(self.separation(found, y), 9), problem.energy(found, s))
+                    if best is None or key < best[0]:
+                        best = key, found
+        return None if best is None else best[1]
 
     # -- events ---------------------------------------------------------------
     def critical(self, y, s, reference=None):
@@ -775,7 +886,8 @@ class _Tracker:
                 return None
             y = problem.project(y, s)
             polished = self.newton(y, s)
-            if polished is None or self.step_norm(polished - y) >= 1e-2:
+            if polished is None or (self.step_norm(polished - y) >= 1e-2
+                                    and not self.downhill(y, polished, s)):
                 continue
             if (self.definite(self.eigenvalues(polished, s))
                     and problem.energy(polished, s) <= problem.energy(y, s) + 1e-12 * self.scale):
@@ -783,6 +895,18 @@ class _Tracker:
             _, modes = problem.stability(polished, s)      # a saddle: push off
             y = problem.project(polished + self.step_off_vector(modes[:, 0]), s)
         return None
+
+    def downhill(self, a, b, s, samples=16):
+        """Whether the energy falls all the way along the straight line from ``a`` to ``b``
+        (projected): then Newton's ``b`` is the minimum of the valley the flow came to
+        rest in, however far, not one across a ridge.  In a very soft valley (lambda_min
+        ~1e-6 of the scale, a neck just past buckling) the flow comes to rest, by its
+        velocity, a few 1e-2 short of the minimum."""
+        problem = self.problem
+        energies = [problem.energy(problem.project(a + t * (b - a), s), s)
+                    for t in np.linspace(0.0, 1.0, samples + 1)]
+        slack = 1e-12 * (abs(energies[0]) + self.scale)
+        return all(e1 <= e0 + slack for e0, e1 in zip(energies, energies[1:]))
 
     def flow_to_rest(self, velocity, y, tol):
         """Integrate dy/dt = velocity until |velocity| <= tol; ``None`` if the solver fails."""

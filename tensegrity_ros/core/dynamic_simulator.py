@@ -146,8 +146,7 @@ class DynamicSimulator(Simulator):
         refusal = self.rhos_refusal(targets)
         if refusal is not None:
             return refusal
-        warnings = tuple(w for w in (self._jump_ahead(i, rho, cause)
-                                     for i, rho in targets.items()) if w is not None)
+        warnings = self._jumps_ahead(targets, cause)
         arrived = self._advance_to(self._seconds(now_ns))
         full = list(_per_module(self._moving.target))
         for index, rho in targets.items():

@@ -47,6 +47,18 @@ class Jump:
 
 
 @dataclass(frozen=True)
+class Passage:
+    """Not a jump: the mechanism passed a supercritical branch point continuously (its
+    minimum buckled smoothly onto one of two new minima, e.g. a neck bending sideways).
+    ``modules`` are every module's parameters there; ``module`` and ``cause`` as in
+    :class:`Jump`.  Worth a log line: the state left a symmetric branch for one side."""
+
+    modules: tuple
+    module: int
+    cause: str
+
+
+@dataclass(frozen=True)
 class TrackingFailure:
     """A path could not be tracked to its end; ``text`` says where and why.  The state
     is the last verified one (where tracking stopped, or unchanged)."""
@@ -103,6 +115,10 @@ def refused(reason, message):
 
 def combined(outcomes):
     """One outcome for several accepted steps: failed if any failed, every event in order."""
+    if type(outcomes) is list and len(outcomes) == 1:   # a command's path: already one
+        only = outcomes[0]
+        if only.status != REFUSED and not (only.reason or only.message):
+            return only
     events = tuple(e for o in outcomes for e in o.events)
     failed = any(o.status == FAILED for o in outcomes)
     return Outcome(status=FAILED if failed else OK, events=events)

@@ -24,13 +24,15 @@ from .tracking import settle, track_module
 @dataclass(frozen=True)
 class Motion:
     """What one tracked path did: the verified ``final`` state, the module parameters
-    ``end`` it holds for (the commanded end unless ``status`` is ``failed``), the jumps."""
+    ``end`` it holds for (the commanded end unless ``status`` is ``failed``), the jumps,
+    and ``passages``: every module's parameters at each branch point passed continuously."""
 
     final: object
     end: tuple
     jumps: tuple
     status: str
     message: str
+    passages: tuple = ()
 
 
 class ModuleView:
@@ -42,18 +44,17 @@ class ModuleView:
     __slots__ = ('stack', 'index', 'theta', 'theta1', 'theta2', 'actuator_force', 'stable',
                  'stability_margin', 'eigenvalues', 'energy', 'residual')
 
-    def __init__(self, stack_eq, index):
+    def __init__(self, stack_eq, index, thetas, forces, whole):
+        """Module ``index`` of ``stack_eq``; ``thetas`` and ``forces`` are its angles and
+        actuator forces as Python floats, ``whole`` the (stable, margin, energy,
+        residual) of the neck: converted once for all N views (see :meth:`Neck.views`)."""
         self.stack = stack_eq
         self.index = index
         self.theta = stack_eq.theta[index]
-        self.theta1 = float(self.theta[0])
-        self.theta2 = float(self.theta[1])
-        self.actuator_force = float(stack_eq.actuator_forces[index])
-        self.stable = stack_eq.stable
-        self.stability_margin = stack_eq.stability_margin
+        self.theta1, self.theta2 = thetas[index]
+        self.actuator_force = forces[index]
+        self.stable, self.stability_margin, self.energy, self.residual = whole
         self.eigenvalues = stack_eq.eigenvalues
-        self.energy = float(stack_eq.energy)
-        self.residual = float(stack_eq.residual)
 
 
 def head_of(positions):
@@ -74,6 +75,8 @@ class OneModule:
     """N = 1: the exact module tracker; margins in J/rad^2 along the angles."""
 
     margin_unit = 'J/rad^2'
+    #: operation_range can give the live branch's stable rho interval (early warnings)
+    has_operation_range = True
 
     def __init__(self):
         self._count_cache = None
@@ -86,7 +89,8 @@ class OneModule:
         track = track_module(start[0], end[0], state.theta)
         jumps = [(j.kind, j.s, (j.params,), np.array([j.from_theta]), np.array([j.to_theta]),
                   j.ambiguous) for j in track.jumps]
-        return Motion(track.final, (track.end,), jumps, track.status, track.message)
+        passages = tuple((params,) for params in track.passages)
+        return Motion(track.final, (track.end,), jumps, track.status, track.message, passages)
 
     def views(self, modules, state):
         return (state,)
@@ -132,6 +136,7 @@ class Neck:
     """N >= 2: the coupled stack tracker; margins in N/m along node displacements."""
 
     margin_unit = 'N/m'
+    has_operation_range = False     # no exact range for a neck: no early warning
 
     def __init__(self):
         self._last = None           # (modules, Stack) of the last path's end
@@ -152,10 +157,15 @@ class Neck:
         track = track_stack(start, self._last[1], state)
         jumps = [(j.kind, j.s, j.stack.modules, j.from_theta, j.to_theta, j.ambiguous)
                  for j in track.jumps]
-        return Motion(track.final, track.end.modules, jumps, track.status, track.message)
+        passages = tuple(p.stack.modules for p in track.passages)
+        return Motion(track.final, track.end.modules, jumps, track.status, track.message,
+                      passages)
 
     def views(self, modules, state):
-        return tuple(ModuleView(state, i) for i in range(len(modules)))
+        thetas, forces = state.theta.tolist(), state.actuator_forces.tolist()
+        whole = (state.stable, state.stability_margin, float(state.energy),
+                 float(state.residual))
+        return tuple(ModuleView(state, i, thetas, forces, whole) for i in range(len(modules)))
 
     def normalized_margin(self, modules, state):
         """The margin over the neck's smallest spring stiffness (N/m)."""

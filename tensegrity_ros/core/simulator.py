@@ -35,7 +35,7 @@ import numpy as np
 from . import events as ev
 from .bounded_work import Job
 from .continuation import TrackingError
-from .events import Deferred, JumpAhead, Outcome, TrackingFailure
+from .events import Deferred, JumpAhead, Outcome, Passage, TrackingFailure
 from .mechanisms import make_jump, mechanism_for
 from .module import InvalidParameterError, ModuleParams
 from .supported_range import check_supported
@@ -271,12 +271,14 @@ class Simulator:
         if refusal is not None:
             return refusal
         self._start_call()
-        warnings = tuple(w for w in (self._jump_ahead(i, rho, cause)
-                                     for i, rho in targets.items()) if w is not None)
-        if not any(self._slots[i].limits.max_rho_rate > 0.0 for i in targets):
-            for index in targets:
-                self._slots[index].target = None
-            ends = {i: self.goal(i).with_rho(rho) for i, rho in targets.items()}
+        warnings = self._jumps_ahead(targets, cause)
+        slots = self._slots
+        if not any(slots[i].limits.max_rho_rate > 0.0 for i in targets):
+            goals = self._goals()
+            ends = {}
+            for index, rho in targets.items():
+                slots[index].target = None
+                ends[index] = goals[index].with_rho(rho)
             moved = self._move(ends, cause, next(iter(targets)))
         else:
             moved = ev.combined(self._retarget(i, rho, now_ns, cause)
@@ -296,10 +298,11 @@ class Simulator:
     def rhos_refusal(self, targets):
         """What :meth:`command_rhos` would refuse in ``targets`` {index: rho} (a refused
         :class:`Outcome`), or None; changes nothing."""
+        slots = self._slots
         for index, rho in targets.items():
-            refusal = self._rho_refusal(index, rho)
-            if refusal is not None:
-                return refusal
+            limits = slots[index].limits
+            if not (math.isfinite(rho) and limits.rho_min <= rho <= limits.rho_max):
+                return self._rho_refusal(index, rho)     # (the reason and its message)
         return None
 
     def force_refusal(self, index, node, force):
@@ -415,6 +418,13 @@ class Simulator:
             return ev.refused(ev.OUT_OF_RANGE, f'{rho!r} outside [rho_min, rho_max] = '
                                                f'[{limits.rho_min}, {limits.rho_max}]')
         return None
+
+    def _jumps_ahead(self, targets, cause):
+        """The :class:`JumpAhead` warnings of actuator ``targets`` {index: rho} (a tuple)."""
+        if not self._mechanism.has_operation_range:
+            return ()
+        return tuple(w for w in (self._jump_ahead(i, rho, cause) for i, rho in targets.items())
+                     if w is not None)
 
     def _jump_ahead(self, index, rho, cause):
         """A :class:`JumpAhead` if ``rho`` lies beyond an end of the live branch's
@@ -544,15 +554,18 @@ class Simulator:
         if not eigenvalues[0] > DEFINITENESS_TOL * abs(eigenvalues[-1]):
             return self._failed(trigger, f'{cause}: tracker returned an unstable state')
         self._set_state(motion.end, motion.final)
-        jumps = tuple(self._record_jump(raw, trigger, cause) for raw in motion.jumps)
+        # passages first (a module's passage carries no s to order it by), then the jumps
+        events = tuple(Passage(modules=tuple(modules), module=trigger, cause=cause)
+                       for modules in motion.passages)
+        events += tuple(self._record_jump(raw, trigger, cause) for raw in motion.jumps)
         if motion.status != 'ok':
             failed = self._failed(trigger, f'{cause}: stopped at {self.names[trigger]} '
                                            f'rho={self.modules[trigger].rho!r}: '
                                            f'{motion.message}')
-            return Outcome(status=ev.FAILED, events=jumps + failed.events)
+            return Outcome(status=ev.FAILED, events=events + failed.events)
         for slot in self._slots:
             slot.tracking = 'ok'
-        return Outcome(events=jumps)
+        return Outcome(events=events)
 
     def _failed(self, index, text):
         self._slots[index].tracking = text

@@ -51,6 +51,8 @@ _DAMPING = 1e-3
 _DAMPING_ONSET = 1e-2
 _FRAME_SIGNS, _ANGLE_SIGNS = np.array([1.0, -1.0]), np.array([-1.0, 1.0])  # StackPath.angles_at
 _BASE_AXIS = np.ones(1, dtype=complex)      # module 0's x axis A1(0) -> A2(0), as a chord
+#: A chord constraint whose gradient is below this (times l_ref) is at a linkage limit.
+LINKAGE_LIMIT_TOL = 1e-4
 
 
 def _solve_guarded(matrix, rhs):
@@ -290,6 +292,14 @@ class _Values:
             self._scales = (l_ref, max(self.k.tolist()) * l_ref, weights)
             return self._scales
 
+    @staticmethod
+    def share_scales(one, zero):
+        """Give ``one`` the scales of ``zero`` (same rods and springs: see :meth:`scales`)."""
+        try:
+            one._scales = zero._scales
+        except AttributeError:
+            pass
+
     @classmethod
     def difference(cls, top, one, zero):
         """one - zero: the rates along s of a straight path (no chord_squares)."""
@@ -310,7 +320,7 @@ class _Point:
     Hessian's diagonal term).  What only some callers need is made on first use."""
 
     __slots__ = ('key', 'values', 'rods', 'diff', 'force', 'moment', 'weights', '_multipliers',
-                 '_f_ref', '_squares', '_hessian', '_jc', '_gram', 'rates')
+                 '_f_ref', '_squares', '_pair', '_jc', '_gram', 'rates')
 
     def __init__(self, path, y, key, values):
         top = path.topology
@@ -327,7 +337,7 @@ class _Point:
         force = self.force = top.element_rods_tc @ (weights * diff)
         force -= values.rod_loads
         self.moment = rods.conj() * force
-        self._squares = self._hessian = self._jc = self._gram = self.rates = None
+        self._squares = self._pair = self._jc = self._gram = self.rates = None
 
     def gradient(self):
         """dL/dphi (2N,): the torque of the generalized force about every rod's base."""
@@ -356,13 +366,27 @@ class _Point:
 
     def hessian(self, path):
         """d2L/dphi2 (2N x 2N): (E^T W E)_rq v_r . v_q, less the moments on the diagonal."""
-        if self._hessian is None:
+        return self.pair(path)[0]
+
+    def metric(self, path):
+        """J^T J of the map from rod angles to moving node coordinates: the Cartesian metric."""
+        pair = self._pair
+        return path.topology.mobility * self.gram if pair is None else pair[1]
+
+    def pair(self, path):
+        """The Hessian and the metric stacked (2, 2N, 2N): both are a constant table
+        times the rods' Gram matrix, so one product makes both (and one reduction
+        ``Z^T pair Z`` both reduced matrices)."""
+        if self._pair is None:
             top = path.topology
-            h = (self.weights @ top.element_outer).reshape(top.n_rods, top.n_rods)
-            h *= self.gram
-            h.flat[::top.n_rods + 1] -= self.moment.real
-            self._hessian = h
-        return self._hessian
+            n = top.n_rods
+            pair = np.empty((2, n, n))
+            np.matmul(self.weights, top.element_outer, out=pair[0].reshape(n * n))
+            pair[1] = top.mobility
+            pair *= self.gram
+            pair[0].flat[::n + 1] -= self.moment.real
+            self._pair = pair
+        return self._pair
 
     def chords(self, path):
         return self.diff[path.topology.n_springs:]
@@ -376,10 +400,6 @@ class _Point:
             chords = self.chords(path)
             self._jc = (chords.conj()[:, None] * self.rods).imag * path.chord_rods_scaled
         return self._jc
-
-    def metric(self, path):
-        """J^T J of the map from rod angles to moving node coordinates: the Cartesian metric."""
-        return path.topology.mobility * self.gram
 
 
 class StackPath:
@@ -417,6 +437,10 @@ class StackPath:
         # which parameter groups move along the path (a still group adds nothing to d/ds)
         changes, layout = rate.data.tolist(), top.value_layout     # (Python: a few floats)
         self._moving = {name: any(changes[layout[name]]) for name in ('rod', 'k', 'rod_loads')}
+        if not (self._moving['rod'] or self._moving['k']):
+            # the scales depend on rods and springs only: the end, the next command's
+            # start, has these very ones (a stream of actuator commands computes them once)
+            _Values.share_scales(one, zero)
         self._values = {0.0: zero, 1.0: one}
         self._point = None
 
@@ -581,8 +605,8 @@ class StackPath:
         if not self.topology.n_chords:
             return p.hessian(self), p.metric(self), self.topology.identity, p
         z = _null_basis(p.constraint_jacobian(self))
-        zt = z.T
-        return zt @ p.hessian(self) @ z, zt @ p.metric(self) @ z, z, p
+        a, b = z.T @ p.pair(self) @ z
+        return a, b, z, p
 
     def eigenvalues(self, y, s):
         return self.eigenvalues_at(self.point(y, s))
@@ -657,6 +681,25 @@ class StackPath:
         n = self.topology.n_rods
         y[:n] = (y[:n] + math.pi) % (2.0 * math.pi) - math.pi
         return y
+
+    def linkage_limit(self, y, s):
+        """A description of the linkage limit the state sits at, or '' if none.
+
+        At a linkage limit a chord constraint's gradient (nearly) vanishes: module i's
+        rods lie flat along its top chord (rho(i) + rho(i+1) = L1 + L2 for a crossed
+        module).  Two branches of configurations cross there, so the equilibrium
+        equations are singular although the state may be a strict minimum, and the
+        chord's force grows without bound where the load pushes along the fold (see
+        ``_Tracker.through_linkage_limit``)."""
+        if not self.topology.n_chords:
+            return ''
+        jc = self.point(y, s).constraint_jacobian(self)
+        if np.linalg.svd(jc, compute_uv=False)[-1] >= LINKAGE_LIMIT_TOL * self.l_ref:
+            return ''
+        i = int(np.argmin(np.linalg.norm(jc, axis=1)))
+        force = abs(float(y[self.topology.n_rods + i])) * self.f_ref
+        return (f'module {i} folded flat onto its top chord (its rods and chord in one '
+                f'line; chord force {force:.3g} N)')
 
     # -- reporting ---------------------------------------------------------------
     def angles(self, y, s):
@@ -745,21 +788,40 @@ class StackEquilibrium:
 
     ``theta`` (N x 2) local angles, ``nodes`` (2 + 2N, 2) every node in the base frame
     (A1(0), A2(0), then A3(i), A4(i) for each module), ``eigenvalues`` of the reduced
-    Hessian (N/m, ascending), ``actuator_forces`` (N,), ``state`` the tracker state.
+    Hessian (N/m, ascending), ``actuator_forces`` (N,), ``state`` the tracker state,
+    ``head_position`` (2,) and ``head_angle`` the midpoint and direction of the top chord.
+    The nodes and the head are made on first use, from ``placement``: a node tracks a
+    state per command (1 kHz) but reads them only at publish_rate.
     """
 
     theta: np.ndarray
-    nodes: np.ndarray
     eigenvalues: np.ndarray
     energy: float
     actuator_forces: np.ndarray
     residual: float
     state: np.ndarray
-    head_position: np.ndarray
-    head_angle: float
     #: The stack parameter vector (bytes) this state was verified at, so that tracking
     #: from it can reuse ``eigenvalues``.
     parameters: bytes = field(default=None, repr=False, compare=False)
+    #: (node table, node base offsets, rod vectors (complex), rho0): ``nodes`` from them.
+    placement: tuple = field(default=None, repr=False, compare=False)
+
+    @functools.cached_property
+    def nodes(self):
+        node_rods, node_base, rods, rho0 = self.placement
+        x = node_rods @ rods
+        x += node_base * rho0
+        return x.view(float).reshape(-1, 2)           # (x, y) pairs: complex memory layout
+
+    @property
+    def head_position(self):
+        (x3, y3), (x4, y4) = self.nodes[-2:].tolist()   # the top chord: A3(N-1), A4(N-1)
+        return np.array([0.5 * (x3 + x4), 0.5 * (y3 + y4)])
+
+    @property
+    def head_angle(self):
+        (x3, y3), (x4, y4) = self.nodes[-2:].tolist()
+        return math.atan2(y3 - y4, x3 - x4)
 
     @property
     def stable(self):
@@ -773,18 +835,15 @@ class StackEquilibrium:
 
 def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
     p = path.point(y, s)
-    nodes = path.nodes_at(p)
-    (x3, y3), (x4, y4) = nodes[-2:].tolist()          # the top chord: A3(N-1), A4(N-1)
+    top = path.topology
     return StackEquilibrium(
-        theta=path.angles_at(p), nodes=nodes,
+        theta=path.angles_at(p),
         eigenvalues=path.eigenvalues_at(p) if eigenvalues is None else eigenvalues,
         energy=path.energy_at(p) if energy is None else energy,
         actuator_forces=path.actuator_forces_at(p),
         residual=float(np.max(np.abs(path.residual_at(p)))) if residual is None else residual,
-        state=np.array(y),
-        head_position=np.array([0.5 * (x3 + x4), 0.5 * (y3 + y4)]),
-        head_angle=math.atan2(y3 - y4, x3 - x4),
-        parameters=path.parameter_vector(s).tobytes())
+        state=np.array(y), parameters=path.parameter_vector(s).tobytes(),
+        placement=(top.node_rods_c, top.node_base, p.rods, p.values.rho0))
 
 
 def stack_equilibrium_at(stack: Stack, state) -> StackEquilibrium:

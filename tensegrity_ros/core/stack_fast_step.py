@@ -8,8 +8,12 @@ takes that step with the tracker's own acceptance rules and nothing else:
   previous command's final one, kept on its record (:func:`keep_final_point`), so
   only what depends on the new command (dF/ds, dE/ds) is computed at s = 0;
 * every evaluation is a point held here (``path.evaluate``), never looked up again;
-* Newton factors the Jacobian once (at the prediction) and stops when the update
-  is at rounding level.
+* Newton factors the Jacobian once (at the prediction) and stops at the first
+  iterate whose update is below 1e-12 (the answer is the tracker's to 1e-10);
+* the step bound's probe of d lambda_min / ds (one more evaluation and reduced
+  eigenproblem, a fifth of the step) runs only where lambda_min fell by more than
+  10 % over the step: elsewhere the end's eigenvalues, computed anyway, show that no
+  critical point was near (a fold ahead makes lambda_min fall like a square root).
 
 Anything the tracker would do differently (a soft mode, a long command, an event)
 returns ``None`` and the caller runs the tracker in full.  The path object is the
@@ -26,6 +30,15 @@ from . import continuation as _continuation
 
 #: The attribute of a stack record that keeps its final evaluation (not a field).
 _KEPT = '_final_point'
+#: Newton stops at an iterate whose update is below this (relative to 1 + |y|): the
+#: state is then the converged one to ~1e-12, well inside the 1e-10 the answers keep.
+_CONVERGED = 1e-12
+#: An update larger than this fraction of the previous one: the kept Jacobian is stale.
+_STALE = 0.1
+#: Where the smallest eigenvalue at the end of the step is at least this fraction of the
+#: start's, the step went nowhere near a critical point and the step bound's probe is
+#: skipped (see :func:`whole_command_step`).
+_STEADY = 0.9
 
 
 def _inf_norm(v):
@@ -53,32 +66,47 @@ def _start_point(path, y, known):
 
 
 def _newton(path, y, tol, iterations):
-    """The tracker's corrector at s = 1 (Newton while it contracts, to rounding level):
-    (state, point, residual), state ``None`` unless the residual ends within ``tol``.
+    """The tracker's corrector at s = 1: (state, point, residual), state ``None`` unless
+    Newton converges and the residual ends within ``tol``.
 
     The Jacobian of the first iterate is kept (LU factors reused): on a small step the
-    iterates move by ~1e-6, so the contraction stays fast.  An update at rounding level
-    is not applied (the point is converged; its residual is already known)."""
+    iterates move by ~1e-6, so the contraction stays fast; where it does not (an update
+    more than ``_STALE`` of the previous one: a long step near a fold) the Jacobian is
+    renewed at the current iterate.  Converged means an update
+    below ``_CONVERGED`` (relative): that iterate is the root to ~1e-12, and its residual
+    is already known, so the update is not applied (the generic corrector would apply
+    it and evaluate once more).  Not converged within ``iterations``: handed over."""
     previous = math.inf
-    rounding = 1e-14 * (1.0 + _inf_norm(y))       # an update this small is rounding
+    settled = _CONVERGED * (1.0 + _inf_norm(y))
     point = path.evaluate(y, 1.0)
     f = path.residual_at(point)
     lu, pivots, info = _dgetrf(path.jacobian_at(point))
     if info != 0:
         return None, point, math.inf
+    converged = False
     for _ in range(iterations):
         delta, _ = _dgetrs(lu, pivots, f)
         size = _inf_norm(delta)
-        if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
+        if size > _STALE * previous:           # slow: the kept Jacobian is stale, renew it
+            lu, pivots, info = _dgetrf(path.jacobian_at(point))
+            if info != 0:
+                break
+            delta, _ = _dgetrs(lu, pivots, f)
+            size = _inf_norm(delta)
+        if size <= settled:
+            converged = True
             break
-        if size <= rounding:
+        if not math.isfinite(size) or size > 0.5 * previous:
             break
         y = y - delta
         point = path.evaluate(y, 1.0)
         f = path.residual_at(point)
         previous = size
-    residual = float(np.abs(f).max())          # numpy: a NaN anywhere fails the test
-    return (y if residual <= tol else None), point, residual
+    values = f.tolist()
+    residual = max(map(abs, values))
+    if not math.isfinite(sum(values)):        # max() may pass over a NaN; a sum does not
+        return None, point, math.inf
+    return (y if converged and residual <= tol else None), point, residual
 
 
 def whole_command_step(path, y, settings, known=None):
@@ -90,8 +118,15 @@ def whole_command_step(path, y, settings, known=None):
     (:func:`~.continuation.positive_definite`, :func:`~.continuation.step_bound`,
     :func:`~.continuation.near_prediction`, :func:`~.continuation.energy_consistent`):
     a stable equilibrium at s = 0, a whole step within the step bound, Newton
-    contracting to a point near the prediction, the energy change matching the
-    envelope theorem, a positive definite reduced Hessian at s = 1.  ``known`` is the
+    converging to a point near the prediction, the energy change matching the
+    envelope theorem, a positive definite reduced Hessian at s = 1.  The step bound's
+    eigenvalue half (its forward-difference probe) is applied only where the smallest
+    eigenvalue at s = 1 is below ``_STEADY`` of the start's; where it is not, the step
+    is taken without it.  What that gives up: a lambda_min that falls steeply at s = 0
+    and recovers to 90 % by s = 1 makes the tracker shorten its step, not this one (an
+    event inside would need two critical points within one small command; none was
+    found in the tests, where Newton, the stability test or the probe decline every
+    command that reaches a fold).  ``known`` is the
     record of ``y`` when it was verified at the start parameters: its eigenvalues,
     residual and energy are those at s = 0."""
     cfg = settings
@@ -112,10 +147,6 @@ def whole_command_step(path, y, settings, known=None):
         return None
     energy0 = path.energy_at(start) if known is None else known.energy
     energy_s0 = path.energy_s_at(start)
-    rate = _continuation.forward_rate(
-        lambda y, s: path.eigenvalues_at(path.evaluate(y, s)), y, 0.0, tangent, eigenvalues[0])
-    if not _continuation.step_bound(reach, eigenvalues[0], rate, cfg) >= 1.0:
-        return None
     predicted = y + tangent
     y1, end, residual = _newton(path, predicted, tol, cfg.newton_iterations)
     if y1 is None or not _continuation.near_prediction(_inf_norm(weights * (y1 - predicted)),
@@ -127,4 +158,11 @@ def whole_command_step(path, y, settings, known=None):
     eigenvalues1 = path.eigenvalues_at(end)
     if not _continuation.positive_definite(eigenvalues1, scale, cfg):
         return None
+    if eigenvalues1[0] < _STEADY * eigenvalues[0]:
+        # lambda_min fell: a fold or branch point may be near; the tracker's step bound
+        # (its forward-difference probe of d lambda_min / ds at the start) decides
+        rate = _continuation.forward_rate(lambda y, s: path.eigenvalues_at(path.evaluate(y, s)),
+                                          y, 0.0, tangent, eigenvalues[0])
+        if not _continuation.step_bound(reach, eigenvalues[0], rate, cfg) >= 1.0:
+            return None
     return y1, eigenvalues1, energy1, residual, end

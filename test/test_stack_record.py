@@ -1,0 +1,64 @@
+"""A stack record's nodes and head (made on first use, from the rods of the tracker's last
+evaluation) against forward kinematics of the record's own local angles, written here."""
+import cmath
+import math
+
+import numpy as np
+from hypothesis import given, settings, strategies as st
+
+from tensegrity_ros.core.module import ModuleParams
+from tensegrity_ros.core.simulator import Simulator
+
+NECK = [ModuleParams(rho=r, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02,
+                     m2=0.02) for r in (0.09, 0.085, 0.08)]
+NECK_THETA = [[0.754, 0.754], [0.813, 0.813], [0.831, 0.831]]
+
+
+def forward_kinematics(modules, theta):
+    """A1(0), A2(0), then A3(i), A4(i): module i stands on module i-1's top chord
+    (A1(i) = A4(i-1), A2(i) = A3(i-1)); t1 is rod A1A3 from the module's x axis
+    A1 -> A2, t2 rod A2A4 from its -x axis."""
+    a1, a2 = 0j, complex(modules[0].rho)
+    nodes = [a1, a2]
+    for m, (t1, t2) in zip(modules, theta):
+        frame = cmath.phase(a2 - a1)
+        a3 = a1 + m.L1 * cmath.exp(1j * (frame + t1))
+        a4 = a2 + m.L2 * cmath.exp(1j * (frame + math.pi - t2))
+        nodes += [a3, a4]
+        a1, a2 = a4, a3
+    return np.array([[z.real, z.imag] for z in nodes])
+
+
+@settings(max_examples=15, deadline=None, derandomize=True)
+@given(st.lists(st.tuples(st.floats(-3e-3, 3e-3), st.floats(-3e-3, 3e-3),
+                          st.floats(-3e-3, 3e-3)), min_size=1, max_size=4))
+def test_nodes_and_head_are_those_of_the_angles(moves):
+    sim = Simulator(NECK, NECK_THETA)
+    for move in moves:
+        sim.command_rhos({i: m.rho + d for i, (m, d) in enumerate(zip(NECK, move))}, 0)
+        state = sim.state
+        expected = forward_kinematics(sim.modules, state.theta)
+        np.testing.assert_allclose(state.nodes, expected, rtol=0, atol=1e-12)
+        a3, a4 = expected[-2], expected[-1]
+        np.testing.assert_allclose(state.head_position, 0.5 * (a3 + a4), rtol=0, atol=1e-12)
+        assert math.isclose(state.head_angle, math.atan2(*(a3 - a4)[::-1]), abs_tol=1e-12)
+        position, angle = sim.head()
+        np.testing.assert_allclose(position, 0.5 * (a3 + a4), rtol=0, atol=1e-12)
+        assert angle == state.head_angle
+
+
+def test_scales_carried_along_actuator_commands_equal_fresh_ones():
+    """A path whose rods and springs stay still hands its scales on to its end (the next
+    command's start): they are the ones computed afresh, and a design change computes new."""
+    from tensegrity_ros.core.stack import Stack, StackPath
+    start = Stack(tuple(NECK))
+    ends = [Stack(tuple(m.with_rho(m.rho + 1e-4 * k) for m in NECK)) for k in (1, 2, 3)]
+    ends.append(Stack(tuple(m.with_(L1=0.13) for m in ends[-1].modules)))
+    for end in ends:
+        carried = StackPath(start, end)
+        fresh = StackPath(Stack(start.modules), Stack(end.modules))
+        assert (carried.l_ref, carried.f_ref) == (fresh.l_ref, fresh.f_ref)
+        np.testing.assert_array_equal(carried.state_weights, fresh.state_weights)
+        start = end
+    fresh = StackPath(Stack(start.modules), Stack(start.modules))  # from the changed design
+    assert StackPath(start, start).l_ref == fresh.l_ref != StackPath(Stack(tuple(NECK)), start).l_ref

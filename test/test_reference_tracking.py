@@ -35,13 +35,13 @@ paths, each against a reference path, in ~6 min on the shared 2-core machine):
 Nearly symmetric necks (paper modules stacked, upright; an asymmetry 1e-2, 1e-4, 1e-6,
 1e-9 in module 0's ka or L2 or a horizontal head-load component; head load 0 -> -40 N
 per top node at rho 0.6, or every chord 0.9 -> 0.2 under -5 N): N = 1 all 24 paths;
-N = 2: 2 paths by default (head load, ka 1e-2 and fx 1e-9: a snap that the asymmetry
-makes a fold, through module 0's change point); the issue's N = 3 neck (ka 100.0000001,
-head load): 1 path.
-Not run by default, and why: the other 46 N = 2 / N = 3 nearly symmetric paths
-(FULL_NECKS=1 runs all 48; each N = 2 reference path takes 60-90 s alone on this
-machine; N = 3 chord ramp ka 1e-4 had not finished after 9 min under load: not yet
-diagnosed; none of the 46 run through on this branch); N = 5 necks (slower
+N = 2: 15 paths by default (all 12 chord ramps, ~1 s each, no event; head load with ka
+1e-2, fx 1e-9, L2 1e-6: a snap that the asymmetry makes a fold, through module 0's
+change point, 20-90 s each); the issue's N = 3 neck (ka 100.0000001, head load): 1 path.
+Not run by default, and why: the other 33 N = 2 / N = 3 nearly symmetric paths
+(FULL_NECKS=1 runs all 48).  Run by hand and passing: N = 2 head load ka 1e-9.  N = 3
+chord ramps (ka 1e-4, fx 1e-9) had not finished after 5-9 min under load: not yet
+diagnosed; the other N = 2 head-load and N = 3 paths were not run; N = 5 necks (slower
 still); perfect (exactly symmetric) necks with a perturbed reference (issue 10 (b3),
 waiting for j10buckle's continuous supercritical buckling); more random N = 2 / 3 necks
 (each costs as much as a nearly symmetric one).
@@ -542,7 +542,8 @@ def test_near_symmetric_one_module_neck(ramp, kind, eps):
 
 #: N = 2 and 3 paths run by default (each neck reference path takes 40-90 s alone on
 #: this machine); FULL_NECKS=1 in the environment runs the whole grid (see the docstring).
-NEAR_SYMMETRIC_NECKS = [(2, 'head', 'ka', 1e-2), (2, 'head', 'fx', 1e-9)]
+NEAR_SYMMETRIC_NECKS = [(2, 'head', 'ka', 1e-2), (2, 'head', 'fx', 1e-9), (2, 'head', 'L2', 1e-6)] \
+    + [(2, 'rho', kind, eps) for kind in ('ka', 'L2', 'fx') for eps in NEAR_SYMMETRIC_EPS]
 if os.environ.get('FULL_NECKS') == '1':
     NEAR_SYMMETRIC_NECKS = [(n, *case) for n in (2, 3) for case in NEAR_SYMMETRIC_CASES]
 

@@ -99,6 +99,10 @@ class Stack:
     def _vector(self):
         return np.array([_PARAMETERS_OF(m) for m in self.modules], dtype=float).ravel()
 
+    @functools.cached_property
+    def _bytes(self):
+        return self._vector.tobytes()
+
     def from_vector(self, values):
         values = np.asarray(values, dtype=float).reshape(len(self), len(PARAMETER_NAMES))
         return Stack(tuple(ModuleParams.from_vector(v, g=self.modules[0].g) for v in values))
@@ -459,6 +463,10 @@ class StackPath:
         """The stack parameters at s (N x 12, flattened), exactly the end's at s = 1."""
         return self.end._vector if s == 1.0 else self.p0 + s * self.dp
 
+    def parameter_bytes(self, s):
+        """:meth:`parameter_vector` as bytes (a record's key), kept on the end stack."""
+        return self.end._bytes if s == 1.0 else self.parameter_vector(s).tobytes()
+
     def params(self, s):
         return self.start.from_vector(self.p0 + s * self.dp)
 
@@ -790,28 +798,34 @@ class StackEquilibrium:
     (A1(0), A2(0), then A3(i), A4(i) for each module), ``eigenvalues`` of the reduced
     Hessian (N/m, ascending), ``actuator_forces`` (N,), ``state`` the tracker state,
     ``head_position`` (2,) and ``head_angle`` the midpoint and direction of the top chord.
-    The nodes and the head are made on first use, from ``placement``: a node tracks a
-    state per command (1 kHz) but reads them only at publish_rate.
+    The angles, forces, nodes and head are made on first use, from ``evaluation``: a
+    node tracks a state per command (1 kHz) but reads them only at publish_rate.
     """
 
-    theta: np.ndarray
     eigenvalues: np.ndarray
     energy: float
-    actuator_forces: np.ndarray
     residual: float
     state: np.ndarray
     #: The stack parameter vector (bytes) this state was verified at, so that tracking
     #: from it can reuse ``eigenvalues``.
     parameters: bytes = field(default=None, repr=False, compare=False)
-    #: (node table, node base offsets, rod vectors (complex), rho0): ``nodes`` from them.
-    placement: tuple = field(default=None, repr=False, compare=False)
+    #: (path, point): the path's evaluation at ``state``, that the lazy values come from.
+    evaluation: tuple = field(default=None, repr=False, compare=False)
+
+    @functools.cached_property
+    def theta(self):
+        path, point = self.evaluation
+        return path.angles_at(point)
+
+    @functools.cached_property
+    def actuator_forces(self):
+        path, point = self.evaluation
+        return path.actuator_forces_at(point)
 
     @functools.cached_property
     def nodes(self):
-        node_rods, node_base, rods, rho0 = self.placement
-        x = node_rods @ rods
-        x += node_base * rho0
-        return x.view(float).reshape(-1, 2)           # (x, y) pairs: complex memory layout
+        path, point = self.evaluation
+        return path.nodes_at(point)
 
     @property
     def head_position(self):
@@ -835,15 +849,11 @@ class StackEquilibrium:
 
 def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
     p = path.point(y, s)
-    top = path.topology
     return StackEquilibrium(
-        theta=path.angles_at(p),
         eigenvalues=path.eigenvalues_at(p) if eigenvalues is None else eigenvalues,
         energy=path.energy_at(p) if energy is None else energy,
-        actuator_forces=path.actuator_forces_at(p),
         residual=float(np.max(np.abs(path.residual_at(p)))) if residual is None else residual,
-        state=np.array(y), parameters=path.parameter_vector(s).tobytes(),
-        placement=(top.node_rods_c, top.node_base, p.rods, p.values.rho0))
+        state=np.array(y), parameters=path.parameter_bytes(s), evaluation=(path, p))
 
 
 def stack_equilibrium_at(stack: Stack, state) -> StackEquilibrium:
@@ -918,7 +928,7 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
         y0 = arr if arr.shape == (path.size,) else path.state_from_angles(
             _checked_angles(arr, len(start)), 0.0)
     known = (state_or_theta if isinstance(state_or_theta, StackEquilibrium)
-             and state_or_theta.parameters == path.p0.tobytes() else None)
+             and state_or_theta.parameters == start._bytes else None)
     quick = whole_command_step(path, y0, settings, known)
     if quick is not None:
         final = _record(path, quick[0], 1.0, *quick[1:4])

@@ -62,3 +62,27 @@ def test_scales_carried_along_actuator_commands_equal_fresh_ones():
         start = end
     fresh = StackPath(Stack(start.modules), Stack(start.modules))  # from the changed design
     assert StackPath(start, start).l_ref == fresh.l_ref != StackPath(Stack(tuple(NECK)), start).l_ref
+
+
+def test_lazy_angles_and_forces_are_those_of_a_fresh_evaluation():
+    """A record's angles, actuator forces and nodes, made on first read from the tracker's
+    kept evaluation, are those of a fresh path evaluated at the record's own state and
+    parameters (read after later commands, so a reused evaluation would show)."""
+    from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
+    stack = Stack(tuple(NECK))
+    state = settle_stack(stack, NECK_THETA)
+    records = []
+    rng = np.random.default_rng(7)
+    for _ in range(6):
+        i = int(rng.integers(len(NECK)))
+        end = stack.with_module(i, rho=stack.modules[i].rho + rng.uniform(-2e-3, 2e-3))
+        state = track_stack(stack, end, state).final
+        records.append((end, state))
+        stack = end
+    for end, record in records:
+        fresh = StackPath(end, end)
+        np.testing.assert_array_equal(record.theta, fresh.angles(record.state, 0.0))
+        np.testing.assert_allclose(record.actuator_forces,
+                                   fresh.actuator_forces(record.state, 0.0), rtol=1e-12)
+        np.testing.assert_allclose(record.nodes, fresh.nodes(record.state, 0.0), rtol=0,
+                                   atol=1e-15)

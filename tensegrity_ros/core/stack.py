@@ -185,7 +185,7 @@ class _Topology:
             for node in (a2(i), a4(i)):
                 weights[node, index(i, 'm2')] -= 0.5
         self.load_forces, self.load_weights = forces, 1j * weights
-        self._load_maps, self._value_maps = {}, {}
+        self._load_maps, self._value_maps, self._weight_maps = {}, {}, {}
         sizes = (('rod_loads', 2 * self.n_rods), ('k', len(springs)), ('chord', self.n_chords),
                  ('rod', self.n_rods), ('shift', len(ends)), ('weights', len(ends)),
                  ('base_load', None), ('rho0', None))
@@ -193,6 +193,20 @@ class _Topology:
         for name, size in sizes:
             self.value_layout[name] = start if size is None else slice(start, start + size)
             start += 1 if size is None else size
+
+    def weight_map(self, scale):
+        """The map from a state to the chords' element weights: multiplier j (state entry
+        2N + j) times ``scale`` is the weight of element n_springs + j (kept per scale: a
+        stream of actuator commands shares one)."""
+        found = self._weight_maps.get(scale)
+        if found is None:
+            if len(self._weight_maps) > 16:
+                self._weight_maps.clear()
+            found = np.zeros((len(self.element_ends), self.n_rods + self.n_chords))
+            chords = np.arange(self.n_chords)
+            found[self.n_springs + chords, self.n_rods + chords] = scale
+            self._weight_maps[scale] = found
+        return found
 
     def load_map(self, g):
         """Complex node forces per parameter (nodes x 12N) under gravity g."""
@@ -323,25 +337,25 @@ class _Point:
     base ``moment`` = conj(rod) force (imaginary part: dL/dphi; real part: the
     Hessian's diagonal term).  What only some callers need is made on first use."""
 
-    __slots__ = ('key', 'values', 'rods', 'diff', 'force', 'moment', 'weights', '_multipliers',
-                 '_f_ref', '_squares', '_pair', '_jc', '_gram', 'rates')
+    __slots__ = ('key', 'values', 'rods', 'diff', 'force', 'moment', 'weights', '_y', '_n',
+                 '_f_ref', '_squares', '_pair', '_jc', '_gram', '_constraints', 'rates')
 
     def __init__(self, path, y, key, values):
         top = path.topology
-        n = top.n_rods
-        self.key, self.values = key, values
+        self.key, self.values, self._y = key, values, y
+        n = self._n = top.n_rods
         rods = self.rods = values.rod * np.exp(1j * y[:n])
         diff = self.diff = top.element_rods_c @ rods
         diff += values.shift
-        weights = self.weights = values.weights
-        multipliers = self._multipliers = y[n:]
         self._f_ref = path.f_ref
-        if top.n_chords:
-            weights = self.weights = np.concatenate((values.k, multipliers * path.f_ref_per_l_ref))
+        # [stiffnesses, chord multipliers * f_ref / l_ref]: the multipliers enter through a
+        # fixed map of the whole state (one product, no slicing and joining)
+        weights = self.weights = (values.weights if path.weight_map is None
+                                  else values.weights + path.weight_map @ y)
         force = self.force = top.element_rods_tc @ (weights * diff)
         force -= values.rod_loads
         self.moment = rods.conj() * force
-        self._squares = self._pair = self._jc = self._gram = self.rates = None
+        self._squares = self._pair = self._jc = self._gram = self._constraints = self.rates = None
 
     def gradient(self):
         """dL/dphi (2N,): the torque of the generalized force about every rod's base."""
@@ -350,7 +364,7 @@ class _Point:
     @property
     def mu(self):
         """The chord multipliers (N - 1,), N: the chords' compression forces."""
-        return self._multipliers * self._f_ref
+        return self._y[self._n:] * self._f_ref
 
     @property
     def squares(self):
@@ -369,8 +383,15 @@ class _Point:
         return self._gram
 
     def hessian(self, path):
-        """d2L/dphi2 (2N x 2N): (E^T W E)_rq v_r . v_q, less the moments on the diagonal."""
-        return self.pair(path)[0]
+        """d2L/dphi2 (2N x 2N): (E^T W E)_rq v_r . v_q, less the moments on the diagonal
+        (alone, where the metric is not made: Newton's Jacobian at a prediction)."""
+        if self._pair is not None:
+            return self._pair[0]
+        n = path.topology.n_rods
+        hessian = (self.weights @ path.topology.element_outer).reshape(n, n)
+        hessian *= self.gram
+        hessian.reshape(n * n)[::n + 1] -= self.moment.real
+        return hessian
 
     def metric(self, path):
         """J^T J of the map from rod angles to moving node coordinates: the Cartesian metric."""
@@ -388,7 +409,7 @@ class _Point:
             np.matmul(self.weights, top.element_outer, out=pair[0].reshape(n * n))
             pair[1] = top.mobility
             pair *= self.gram
-            pair[0].flat[::n + 1] -= self.moment.real
+            pair.reshape(2 * n * n)[:n * n:n + 1] -= self.moment.real
             self._pair = pair
         return self._pair
 
@@ -396,7 +417,11 @@ class _Point:
         return self.diff[path.topology.n_springs:]
 
     def constraints(self, path):
-        return (self.squares[path.topology.n_springs:] - self.values.chord_squares) * path.half_inv_l_ref
+        """The chord constraints (N - 1,), m (kept: the residual and the energy use them)."""
+        if self._constraints is None:
+            self._constraints = ((self.squares[path.topology.n_springs:]
+                                  - self.values.chord_squares) * path.half_inv_l_ref)
+        return self._constraints
 
     def constraint_jacobian(self, path):
         """d c / d phi ((N - 1) x 2N): chord . (i v_r) / l_ref where rod r builds the chord."""
@@ -436,6 +461,7 @@ class StackPath:
         self.f_ref_per_l_ref = self.f_ref / self.l_ref
         self.inv_l_ref = 1.0 / self.l_ref
         self.chord_rods_scaled = top.chord_rods * -self.inv_l_ref
+        self.weight_map = top.weight_map(self.f_ref_per_l_ref) if top.n_chords else None
         self._zero_values = zero
         rate = self._rate_values = _Values.difference(top, one, zero)
         # which parameter groups move along the path (a still group adds nothing to d/ds)

@@ -33,7 +33,7 @@ import operator
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg.lapack import dgeqrf as _dgeqrf, dorgqr as _dorgqr, dsygv as _dsygv
+from scipy.linalg.lapack import dgeqrf as _dgeqrf, dormqr as _dormqr, dsygv as _dsygv
 from scipy.optimize import root
 
 from . import continuation as _continuation
@@ -243,17 +243,24 @@ def _topology(n):
     return _Topology(n)
 
 
+@functools.lru_cache(maxsize=32)
+def _trailing_columns(n, m):
+    """The last n - m columns of the n x n identity (read only)."""
+    columns = np.eye(n)[:, m:]
+    columns.flags.writeable = False
+    return columns
+
+
 def _null_basis(jc):
     """A basis (columns) of the null space of ``jc`` (m x n, full row rank, m < n): the
-    trailing columns of a complete QR of jc^T, by LAPACK directly (no per-call checks)."""
+    trailing columns of the Q of a QR of jc^T, Q applied to them by LAPACK directly (no
+    per-call checks, Q itself never formed)."""
     m, n = jc.shape
     if m == 0:
         return np.eye(n)
-    padded = np.zeros((n, n), order='F')
-    padded[:, :m] = jc.T
-    qr, tau, _, _ = _dgeqrf(padded, overwrite_a=True)
-    q, _, _ = _dorgqr(qr, tau, overwrite_a=True)
-    return q[:, m:]
+    qr, tau, _, _ = _dgeqrf(jc.T)
+    z, _, info = _dormqr('L', 'N', qr, tau, _trailing_columns(n, m), n)
+    return z
 
 
 class _Values:
@@ -466,7 +473,8 @@ class StackPath:
         rate = self._rate_values = _Values.difference(top, one, zero)
         # which parameter groups move along the path (a still group adds nothing to d/ds)
         changes, layout = rate.data.tolist(), top.value_layout     # (Python: a few floats)
-        self._moving = {name: any(changes[layout[name]]) for name in ('rod', 'k', 'rod_loads')}
+        self._moving = {name: any(changes[layout[name]])
+                        for name in ('rod', 'k', 'rod_loads', 'shift')}
         if not (self._moving['rod'] or self._moving['k']):
             # the scales depend on rods and springs only: the end, the next command's
             # start, has these very ones (a stream of actuator commands computes them once)
@@ -558,11 +566,16 @@ class StackPath:
 
     def _rates(self, p):
         """At fixed state, kept in the point: (rate of the rod lengths / length, d(rod
-        vectors)/ds, d(element differences)/ds, Re(conj(diff) d diff/ds))."""
+        vectors)/ds, d(element differences)/ds, Re(conj(diff) d diff/ds)); ``None`` for
+        what does not move (rigid rods; no element moves where rods and base are still:
+        an actuator command to a module above the first changes chord lengths only)."""
         if p.rates is None:
             rate = self._rate_values
             if not self._moving['rod']:             # rigid rods: only the base moves
-                p.rates = None, None, rate.shift, p.diff.real * rate.shift
+                if not self._moving['shift']:
+                    p.rates = None, None, None, None
+                else:
+                    p.rates = None, None, rate.shift, p.diff.real * rate.shift
                 return p.rates
             ratio = rate.rod / p.values.rod
             d_rods = p.rods * ratio
@@ -579,20 +592,31 @@ class StackPath:
         top, rate = self.topology, self._rate_values
         ratio, _, d_diff, cross = self._rates(p)
         moving = self._moving
-        d_weighted = p.weights * d_diff
-        if moving['k']:
-            d_weighted = d_weighted + rate.weights * p.diff      # (complex where rods are still)
-        d_force = top.element_rods_tc @ d_weighted
-        if moving['rod_loads']:
-            d_force -= rate.rod_loads
         out = np.empty(self.size)
         n, ns = top.n_rods, top.n_springs
-        # d Im(conj(v) f) with dv = ratio v: Im(conj(v) df) + ratio Im(conj(v) f)
-        d_gradient = (p.rods.conj() * d_force).imag
-        if ratio is not None:
-            d_gradient += ratio * p.moment.imag
-        out[:n] = d_gradient * self.inv_l_ref
-        out[n:] = (cross[ns:] - p.values.chord * rate.chord) * self.inv_l_ref
+        d_weighted = None if d_diff is None else p.weights * d_diff
+        if moving['k']:
+            spring_rates = rate.weights * p.diff                  # (complex where rods are still)
+            d_weighted = spring_rates if d_weighted is None else d_weighted + spring_rates
+        if d_weighted is None and not moving['rod_loads']:
+            out[:n] = 0.0                   # no force moves (and the rods are still)
+        else:
+            if d_weighted is None:
+                d_force = -rate.rod_loads
+            else:
+                d_force = top.element_rods_tc @ d_weighted
+                if moving['rod_loads']:
+                    d_force -= rate.rod_loads
+            # d Im(conj(v) f) with dv = ratio v: Im(conj(v) df) + ratio Im(conj(v) f)
+            d_gradient = (p.rods.conj() * d_force).imag
+            if ratio is not None:
+                d_gradient += ratio * p.moment.imag
+            out[:n] = d_gradient * self.inv_l_ref
+        chord_rates = p.values.chord * rate.chord
+        if cross is None:
+            np.multiply(chord_rates, -self.inv_l_ref, out=out[n:])
+        else:
+            out[n:] = (cross[ns:] - chord_rates) * self.inv_l_ref
         return out
 
     def energy(self, y, s):
@@ -619,7 +643,7 @@ class StackPath:
         v, rate, ns = p.values, self._rate_values, self.topology.n_springs
         _, d_rods, _, cross = self._rates(p)
         moving = self._moving
-        springs = float(p.weights @ cross)
+        springs = 0.0 if cross is None else float(p.weights @ cross)
         if moving['k']:
             springs += 0.5 * float(rate.k @ p.squares[:ns])
         work = rate.base_load * v.rho0 + v.base_load * rate.rho0

@@ -185,7 +185,7 @@ class _Topology:
             for node in (a2(i), a4(i)):
                 weights[node, index(i, 'm2')] -= 0.5
         self.load_forces, self.load_weights = forces, 1j * weights
-        self._load_maps, self._value_maps, self._weight_maps = {}, {}, {}
+        self._load_maps, self._value_maps, self._scaled_tables = {}, {}, {}
         sizes = (('rod_loads', 2 * self.n_rods), ('k', len(springs)), ('chord', self.n_chords),
                  ('rod', self.n_rods), ('shift', len(ends)), ('weights', len(ends)),
                  ('base_load', None), ('rho0', None))
@@ -193,19 +193,26 @@ class _Topology:
         for name, size in sizes:
             self.value_layout[name] = start if size is None else slice(start, start + size)
             start += 1 if size is None else size
+        # the array groups of packed values as views, in one call (base_load, rho0: the last two)
+        self.value_views = operator.itemgetter(*(self.value_layout[name] for name in (
+            'rod_loads', 'k', 'chord', 'rod', 'shift', 'weights')))
 
-    def weight_map(self, scale):
-        """The map from a state to the chords' element weights: multiplier j (state entry
-        2N + j) times ``scale`` is the weight of element n_springs + j (kept per scale: a
-        stream of actuator commands shares one)."""
-        found = self._weight_maps.get(scale)
+    def scaled_tables(self, l_ref, f_ref):
+        """(weight map, chord rods * -1 / l_ref) of a path with these scales (kept: a
+        stream of actuator commands shares them).  The weight map takes a state to the
+        chords' element weights: multiplier j (state entry 2N + j) times f_ref / l_ref
+        is the weight of element n_springs + j (None without chords)."""
+        key = (l_ref, f_ref)
+        found = self._scaled_tables.get(key)
         if found is None:
-            if len(self._weight_maps) > 16:
-                self._weight_maps.clear()
-            found = np.zeros((len(self.element_ends), self.n_rods + self.n_chords))
-            chords = np.arange(self.n_chords)
-            found[self.n_springs + chords, self.n_rods + chords] = scale
-            self._weight_maps[scale] = found
+            if len(self._scaled_tables) > 16:
+                self._scaled_tables.clear()
+            weight_map = None
+            if self.n_chords:
+                weight_map = np.zeros((len(self.element_ends), self.n_rods + self.n_chords))
+                chords = np.arange(self.n_chords)
+                weight_map[self.n_springs + chords, self.n_rods + chords] = f_ref / l_ref
+            found = self._scaled_tables[key] = (weight_map, self.chord_rods * -(1.0 / l_ref))
         return found
 
     def load_map(self, g):
@@ -277,12 +284,9 @@ class _Values:
     def _of_data(cls, top, data, rates=False):
         self = cls()
         self.data = data
-        layout = top.value_layout
-        self.rod_loads = data[layout['rod_loads']].view(complex)   # d(load work)/d(rod vector)
-        self.k, self.chord, self.rod = data[layout['k']], data[layout['chord']], data[layout['rod']]
-        self.shift, self.weights = data[layout['shift']], data[layout['weights']]
-        self.base_load = float(data[layout['base_load']])          # x force carried by A2(0)
-        self.rho0 = float(data[layout['rho0']])
+        rod_loads, self.k, self.chord, self.rod, self.shift, self.weights = top.value_views(data)
+        self.rod_loads = rod_loads.view(complex)                   # d(load work)/d(rod vector)
+        self.base_load, self.rho0 = data[-2:].tolist()             # x force carried by A2(0)
         self.chord_squares = None if rates else self.chord ** 2
         return self
 
@@ -467,8 +471,7 @@ class StackPath:
         self.half_inv_l_ref = 0.5 / self.l_ref
         self.f_ref_per_l_ref = self.f_ref / self.l_ref
         self.inv_l_ref = 1.0 / self.l_ref
-        self.chord_rods_scaled = top.chord_rods * -self.inv_l_ref
-        self.weight_map = top.weight_map(self.f_ref_per_l_ref) if top.n_chords else None
+        self.weight_map, self.chord_rods_scaled = top.scaled_tables(self.l_ref, self.f_ref)
         self._zero_values = zero
         rate = self._rate_values = _Values.difference(top, one, zero)
         # which parameter groups move along the path (a still group adds nothing to d/ds)
@@ -906,6 +909,14 @@ def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
         state=np.array(y), parameters=path.parameter_bytes(s), evaluation=(path, p))
 
 
+def _end_record(path, y, eigenvalues, energy, residual, point):
+    """The record of the small-command step's verified end: ``point`` is its evaluation
+    at ``y``, s = 1, and ``y`` the step's own array (held by the point alone, so the
+    record takes it without a copy)."""
+    return StackEquilibrium(eigenvalues=eigenvalues, energy=energy, residual=residual,
+                            state=y, parameters=path.end._bytes, evaluation=(path, point))
+
+
 def stack_equilibrium_at(stack: Stack, state) -> StackEquilibrium:
     """The record of a tracker state of ``stack``."""
     return _record(StackPath(stack, stack), np.asarray(state, dtype=float), 0.0)
@@ -981,7 +992,7 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
              and state_or_theta.parameters == start._bytes else None)
     quick = whole_command_step(path, y0, settings, known)
     if quick is not None:
-        final = _record(path, quick[0], 1.0, *quick[1:4])
+        final = _end_record(path, *quick)
         keep_final_point(final, path, quick[4])
         return StackTrack(final=final, end=end, jumps=(), steps=1)
     try:

@@ -138,16 +138,15 @@ def whole_command_step(path, y, settings, known=None):
     residual0 = _inf_norm(path.residual_at(start)) if known is None else known.residual
     if not _continuation.positive_definite(eigenvalues, scale, cfg) or residual0 > tol:
         return None
-    _, _, tangent, info = _dgesv(path.jacobian_at(start), path.residual_s_at(start))
-    if info != 0:
+    _, _, backward, info = _dgesv(path.jacobian_at(start), path.residual_s_at(start))
+    if info != 0:                             # (backward = -tangent: no negation needed)
         return None
-    tangent = -tangent
-    reach = _inf_norm(weights * tangent)
+    reach = _inf_norm(weights * backward)
     if not reach <= cfg.max_state_step:       # cheap early out: step_bound below says the same
         return None
     energy0 = path.energy_at(start) if known is None else known.energy
     energy_s0 = path.energy_s_at(start)
-    predicted = y + tangent
+    predicted = y - backward
     y1, end, residual = _newton(path, predicted, tol, cfg.newton_iterations)
     if y1 is None or not _continuation.near_prediction(_inf_norm(weights * (y1 - predicted)),
                                                        reach, 1.0, cfg):
@@ -162,7 +161,7 @@ def whole_command_step(path, y, settings, known=None):
         # lambda_min fell: a fold or branch point may be near; the tracker's step bound
         # (its forward-difference probe of d lambda_min / ds at the start) decides
         rate = _continuation.forward_rate(lambda y, s: path.eigenvalues_at(path.evaluate(y, s)),
-                                          y, 0.0, tangent, eigenvalues[0])
+                                          y, 0.0, -backward, eigenvalues[0])
         if not _continuation.step_bound(reach, eigenvalues[0], rate, cfg) >= 1.0:
             return None
     return y1, eigenvalues1, energy1, residual, end

@@ -92,6 +92,27 @@ def test_rates_skipping_still_groups_equal_the_general_formula(seed, n, s, group
     assert e_s == pytest.approx(fd_e, abs=1e-5 * max(1.0, abs(fd_e)))
 
 
+@pytest.mark.parametrize('module', [1, 2])
+def test_rates_of_an_actuator_command_above_the_first_module(module):
+    """An actuator command to a module above the first moves no element at fixed state
+    (rods, springs, loads and the base are still: only chord lengths change), so dF/ds
+    and dE/ds skip the force terms: they equal the general formula exactly and central
+    differences to 1e-6, at seeded random states."""
+    rng = np.random.default_rng(500 + module)
+    start = random_stack(rng, 3)
+    end = start.with_module(module, rho=start.modules[module].rho + 0.01)
+    path, general = StackPath(start, end), StackPath(start, end)
+    assert not any(path._moving.values())
+    general._moving = dict.fromkeys(general._moving, True)
+    for s in (0.0, 0.3, 1.0):
+        y = np.concatenate([rng.uniform(-np.pi, np.pi, 6), rng.uniform(-1, 1, 2)])
+        np.testing.assert_array_equal(path.residual_s(y, s), general.residual_s(y, s))
+        assert path.energy_s(y, s) == general.energy_s(y, s)
+        h = 1e-6
+        fd_s = (general.residual(y, s + h) - general.residual(y, s - h)) / (2 * h)
+        assert np.max(np.abs(path.residual_s(y, s) - fd_s)) < 1e-6 * max(1.0, np.max(np.abs(fd_s)))
+
+
 @pytest.mark.parametrize('n', [1, 3])
 def test_the_kept_evaluation_is_the_fresh_one_at_the_next_start(n):
     """The point kept on a record is taken (not re-evaluated) by the next command at the

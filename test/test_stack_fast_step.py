@@ -92,6 +92,21 @@ def test_rates_skipping_still_groups_equal_the_general_formula(seed, n, s, group
     assert e_s == pytest.approx(fd_e, abs=1e-5 * max(1.0, abs(fd_e)))
 
 
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2 ** 16), n=st.integers(1, 5), s=st.floats(0.0, 1.0))
+def test_the_prediction_jacobian_is_the_jacobian(seed, n, s):
+    """Newton's Jacobian at a prediction, made from one complex outer product of the rods
+    and chords, is the Jacobian made from the Hessian and the constraint Jacobian, to
+    rounding (random stacks, paths and states, multipliers included)."""
+    rng = np.random.default_rng(seed)
+    path = StackPath(random_stack(rng, n), random_stack(rng, n))
+    y = np.concatenate([rng.uniform(-np.pi, np.pi, 2 * n), rng.uniform(-1, 1, n - 1)])
+    reference = path.jacobian_at(path.evaluate(y, s))
+    ours = path.prediction_jacobian_at(path.evaluate(y.copy(), s))
+    assert ours.shape == reference.shape
+    assert np.max(np.abs(ours - reference)) <= 1e-14 * np.max(np.abs(reference))
+
+
 @pytest.mark.parametrize('module', [1, 2])
 def test_rates_of_an_actuator_command_above_the_first_module(module):
     """An actuator command to a module above the first moves no element at fixed state

@@ -198,21 +198,29 @@ class _Topology:
             'rod_loads', 'k', 'chord', 'rod', 'shift', 'weights')))
 
     def scaled_tables(self, l_ref, f_ref):
-        """(weight map, chord rods * -1 / l_ref) of a path with these scales (kept: a
-        stream of actuator commands shares them).  The weight map takes a state to the
-        chords' element weights: multiplier j (state entry 2N + j) times f_ref / l_ref
-        is the weight of element n_springs + j (None without chords)."""
+        """(weight map, chord rods * -1 / l_ref, Jacobian coefficients, element outer
+        products / l_ref) of a path with these scales (kept: a stream of actuator
+        commands shares them).  The weight map takes a state to the chords' element
+        weights: multiplier j (state entry 2N + j) times f_ref / l_ref is the weight of
+        element n_springs + j (None without chords).  The Jacobian coefficients are
+        those of :meth:`StackPath.prediction_jacobian_at` without the stiffness block."""
         key = (l_ref, f_ref)
         found = self._scaled_tables.get(key)
         if found is None:
             if len(self._scaled_tables) > 16:
                 self._scaled_tables.clear()
+            n, size = self.n_rods, self.n_rods + self.n_chords
             weight_map = None
+            chord_rods = self.chord_rods * -(1.0 / l_ref)
+            coefficients = np.zeros((size, size), dtype=complex)
             if self.n_chords:
-                weight_map = np.zeros((len(self.element_ends), self.n_rods + self.n_chords))
+                weight_map = np.zeros((len(self.element_ends), size))
                 chords = np.arange(self.n_chords)
-                weight_map[self.n_springs + chords, self.n_rods + chords] = f_ref / l_ref
-            found = self._scaled_tables[key] = (weight_map, self.chord_rods * -(1.0 / l_ref))
+                weight_map[self.n_springs + chords, n + chords] = f_ref / l_ref
+                coefficients[n:, :n] = -1j * chord_rods
+                coefficients[:n, n:] = 1j * (f_ref / l_ref) * chord_rods.T
+            found = self._scaled_tables[key] = (weight_map, chord_rods, coefficients,
+                                                self.element_outer * (1.0 / l_ref))
         return found
 
     def load_map(self, g):
@@ -471,7 +479,8 @@ class StackPath:
         self.half_inv_l_ref = 0.5 / self.l_ref
         self.f_ref_per_l_ref = self.f_ref / self.l_ref
         self.inv_l_ref = 1.0 / self.l_ref
-        self.weight_map, self.chord_rods_scaled = top.scaled_tables(self.l_ref, self.f_ref)
+        (self.weight_map, self.chord_rods_scaled, self._jacobian_coefficients,
+         self._outer_per_l_ref) = top.scaled_tables(self.l_ref, self.f_ref)
         self._zero_values = zero
         rate = self._rate_values = _Values.difference(top, one, zero)
         # which parameter groups move along the path (a still group adds nothing to d/ds)
@@ -566,6 +575,22 @@ class StackPath:
             jc = out[n:, :n] = p.constraint_jacobian(self)
             np.multiply(jc.T, self.f_ref_per_l_ref, out=out[:n, n:])
         return out
+
+    def prediction_jacobian_at(self, p):
+        """:meth:`jacobian_at` at a point whose Hessian and constraint Jacobian are not
+        made (Newton's prediction in a small step), in fewer operations: with u = (rods,
+        chords), every entry is Re(conj(u_a) u_b c_ab) -- stiffness (E^T W E)_ab / l_ref
+        in the Hessian block, -i or i times the scaled chord rods in the constraint
+        blocks -- less the moments / l_ref on the diagonal.  (Equal to :meth:`jacobian_at`
+        to rounding; a real view of a complex array, for a LAPACK factorization.)"""
+        n, size = self.topology.n_rods, self.size
+        u = np.concatenate((p.rods, p.diff[self.topology.n_springs:]))
+        table = self._jacobian_coefficients.copy()
+        table[:n, :n] = (p.weights @ self._outer_per_l_ref).reshape(n, n)
+        table *= u.conj()[:, None]
+        table *= u
+        table.reshape(size * size)[:n * (size + 1):size + 1] -= p.moment.real * self.inv_l_ref
+        return table.real
 
     def _rates(self, p):
         """At fixed state, kept in the point: (rate of the rod lengths / length, d(rod

@@ -80,7 +80,7 @@ def _newton(path, y, tol, iterations):
     settled = _CONVERGED * (1.0 + _inf_norm(y))
     point = path.evaluate(y, 1.0)
     f = path.residual_at(point)
-    lu, pivots, info = _dgetrf(path.jacobian_at(point))
+    lu, pivots, info = _dgetrf(path.prediction_jacobian_at(point))
     if info != 0:
         return None, point, math.inf
     converged = False

@@ -8,8 +8,10 @@ takes that step with the tracker's own acceptance rules and nothing else:
   previous command's final one, kept on its record (:func:`keep_final_point`), so
   only what depends on the new command (dF/ds, dE/ds) is computed at s = 0;
 * every evaluation is a point held here (``path.evaluate``), never looked up again;
-* Newton factors the Jacobian once (at the prediction) and stops at the first
-  iterate whose update is below 1e-12 (the answer is the tracker's to 1e-10);
+* Newton factors the Jacobian once (at the prediction, made by the path's
+  ``prediction_jacobian_at`` from one outer product, without the Hessian and constraint
+  Jacobian that only the end needs) and stops at the first iterate whose update is
+  below 1e-12 (the answer is the tracker's to 1e-10);
 * the step bound's probe of d lambda_min / ds (one more evaluation and reduced
   eigenproblem, a fifth of the step) runs only where lambda_min fell by more than
   10 % over the step: elsewhere the end's eigenvalues, computed anyway, show that no

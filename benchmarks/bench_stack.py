@@ -39,7 +39,7 @@ import numpy as np
 from scipy.optimize import root
 
 from tensegrity_ros.core import ModuleParams, continuation, track_module
-from tensegrity_ros.core.stack import Stack, StackPath, _record, settle_stack, track_stack
+from tensegrity_ros.core.stack import Stack, StackPath, _end_record, settle_stack, track_stack
 from tensegrity_ros.core.stack_fast_step import _dgesv, _dgetrf, _start_point
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
@@ -131,8 +131,9 @@ def floor(n=3):
     """The parts every verified small step needs, timed alone, against the naive root."""
     stack = neck(n)
     state = settle_stack(stack, np.full((n, 2), 0.72))
-    state = track_stack(stack, stack.with_module(0, rho=0.751), state).final
-    stack = stack.with_module(0, rho=0.751)
+    first = stack.with_module(0, rho=0.751)        # (the same Stack object as the next start:
+    state = track_stack(stack, first, state).final  # its kept evaluation is reused, as in a
+    stack = first                                   # stream of commands)
     moved = stack.with_module(n - 1, rho=0.752)
     path = StackPath(stack, moved)
     y, y1 = state.state, track_stack(stack, moved, state).final.state
@@ -149,11 +150,11 @@ def floor(n=3):
         'tangent (J, dF/ds, solve)': tight(lambda: _dgesv(path.jacobian_at(start),
                                                           path.residual_s_at(unrated()))),
         '2 iterates (evaluate, residual)': 2 * tight(lambda: path.residual_at(fresh())),
-        'Jacobian + LU': tight(lambda: _dgetrf(path.jacobian_at(fresh()))) - point,
+        'Jacobian + LU': tight(lambda: _dgetrf(path.prediction_jacobian_at(fresh()))) - point,
         'reduced eigenproblem': tight(lambda: path.eigenvalues_at(fresh())) - point,
         'energy check (E, dE/ds x 2)': tight(lambda: (path.energy_at(fresh()), path.energy_s_at(
             fresh()), path.energy_s_at(unrated()))) - 2 * point,
-        'record': tight(lambda: _record(path, y1, 1.0, state.eigenvalues, 0.0, 0.0)),
+        'record': tight(lambda: _end_record(path, y1, state.eigenvalues, 0.0, 0.0, start)),
     }
     total = sum(parts.values())
     step = tight(lambda: track_stack(stack, moved, state))

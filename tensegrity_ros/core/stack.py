@@ -219,8 +219,11 @@ class _Topology:
                 weight_map[self.n_springs + chords, n + chords] = f_ref / l_ref
                 coefficients[n:, :n] = -1j * chord_rods
                 coefficients[:n, n:] = 1j * (f_ref / l_ref) * chord_rods.T
-            found = self._scaled_tables[key] = (weight_map, chord_rods, coefficients,
-                                                self.element_outer * (1.0 / l_ref))
+            found = (weight_map, chord_rods, coefficients, self.element_outer * (1.0 / l_ref))
+            for table in found:
+                if table is not None:
+                    table.flags.writeable = False      # shared by every path of these scales
+            self._scaled_tables[key] = found
         return found
 
     def load_map(self, g):

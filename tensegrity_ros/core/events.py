@@ -79,9 +79,23 @@ class Deferred:
 
 
 @dataclass(frozen=True)
+class BranchEnd:
+    """Where a neck's live branch ends on the path ahead of a speed-limited actuator,
+    found by tracking that path in advance: ``rho`` is the commanded module's actuator
+    length there, ``kind`` ``fold`` or ``branch_point``, ``modules`` every module's
+    parameters and ``theta`` (N x 2) the critical configuration."""
+
+    rho: float
+    kind: str
+    modules: tuple
+    theta: np.ndarray
+
+
+@dataclass(frozen=True)
 class JumpAhead:
     """Early warning: the target ``rho`` of ``module`` lies beyond the end of the live
-    branch's operation range (``end``, a fold or branch point): the mechanism will jump."""
+    branch (``end``: one module's exact operation-range end, a neck's :class:`BranchEnd`;
+    either has ``rho`` and ``kind``, a fold or branch point): the mechanism will jump."""
 
     module: int
     rho: float

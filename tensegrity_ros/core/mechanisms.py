@@ -15,7 +15,7 @@ import numpy as np
 
 from .operation_range import operation_range
 from .polynomial_solver import equilibria
-from .events import Jump
+from .events import BranchEnd, Jump
 from .module import node_positions
 from .stack import Stack, settle_stack, track_stack
 from .tracking import settle, track_module
@@ -75,7 +75,8 @@ class OneModule:
     """N = 1: the exact module tracker; margins in J/rad^2 along the angles."""
 
     margin_unit = 'J/rad^2'
-    #: operation_range can give the live branch's stable rho interval (early warnings)
+    #: operation_range can give the live branch's stable rho interval (early warnings
+    #: for every command, at the cost of a cached range)
     has_operation_range = True
 
     def __init__(self):
@@ -136,7 +137,8 @@ class Neck:
     """N >= 2: the coupled stack tracker; margins in N/m along node displacements."""
 
     margin_unit = 'N/m'
-    has_operation_range = False     # no exact range for a neck: no early warning
+    #: no exact range for a neck: early warnings come from tracking ahead (:meth:`ahead`)
+    has_operation_range = False
 
     def __init__(self):
         self._last = None           # (modules, Stack) of the last path's end
@@ -160,6 +162,20 @@ class Neck:
         passages = tuple(p.stack.modules for p in track.passages)
         return Motion(track.final, track.end.modules, jumps, track.status, track.message,
                       passages)
+
+    def ahead(self, modules, state, index, rho):
+        """Where the live branch ends if module ``index``'s actuator goes on to ``rho``
+        with the others held (a :class:`BranchEnd`), or None: the path tracked in
+        advance, a dry run that changes nothing here (the last end is not replaced).
+        None too where tracking stops before a jump (the real path will say why)."""
+        start = self._stack(modules) if self._last is not None and \
+            self._last[0] == modules else Stack(modules)
+        track = track_stack(start, start.with_module(index, rho=rho), state)
+        if not track.jumps:
+            return None
+        first = track.jumps[0]
+        return BranchEnd(rho=first.stack.modules[index].rho, kind=first.kind,
+                         modules=first.stack.modules, theta=first.from_theta)
 
     def views(self, modules, state):
         thetas, forces = state.theta.tolist(), state.actuator_forces.tolist()

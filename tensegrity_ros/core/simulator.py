@@ -123,6 +123,16 @@ class _Path:
         self.end, self.cause, self.trigger = end, cause, trigger
 
 
+class _Lookahead:
+    """A speed-limited neck actuator's path to ``rho`` tracked ahead in a
+    :class:`~.bounded_work.Job`, for an early warning (see :meth:`Simulator.command_rhos`)."""
+
+    __slots__ = ('rho', 'cause', 'job')
+
+    def __init__(self, rho, cause, job):
+        self.rho, self.cause, self.job = rho, cause, job
+
+
 class _Motion:
     """A path being tracked in slices: its :class:`~.bounded_work.Job` and the work done."""
 
@@ -171,6 +181,8 @@ class Simulator:
         self._deadline = math.inf       # of the running call
         self._motion = None             # the path being tracked (a _Motion), or None
         self._queued = None             # the _Path to track after it, or None
+        self._lookaheads = {}           # module index -> _Lookahead (a neck's early warnings)
+        self._look_later = set()        # modules to track ahead once no path is pending
         self.time_budget = None         # the start is settled in one call, however long
         started = self.reset(modules, initial_theta)
         self.time_budget = time_budget
@@ -264,6 +276,15 @@ class Simulator:
         Refused as a whole if any target is not finite or outside its module's limits.
         Without speed limits every target is one straight path (all modules together);
         a speed-limited module moves toward its target in :meth:`advance`.
+
+        Early warnings (:class:`JumpAhead`): one module's come from its exact operation
+        range, for every command.  A neck has none; for a speed-limited actuator its
+        path is tracked ahead instead (the other modules held where they are), in
+        slices of this and the following calls' leftover time, and a jump on it is
+        warned about unless the actuator has reached it by then (a load or design
+        change tracks the paths ahead again).  A neck command without a speed limit is
+        applied in the same call: its jump is reported, not announced (tracking it
+        twice would double the cost of every command).
         """
         if not targets:
             return Outcome()
@@ -283,9 +304,8 @@ class Simulator:
         else:
             moved = ev.combined(self._retarget(i, rho, now_ns, cause)
                                 for i, rho in targets.items())
-        if warnings:
-            moved = Outcome(status=moved.status, events=warnings + moved.events)
-        return moved
+            moved = _with_warnings(moved, self._look_ahead(targets), after=True)
+        return _with_warnings(moved, warnings)
 
     def set_force(self, index, node, force, now_ns, cause=None):
         """Force (fx, fy) at node ``'a3'`` or ``'a4'`` of a module (N, base frame)."""
@@ -328,9 +348,12 @@ class Simulator:
         if refusal is not None:
             return refusal
         self._start_call()
+        self._drop_lookaheads()
         advanced = [self._advance_module(i, now_ns) for i in changes]
         ends = {i: self.goal(i).with_(**fields) for i, fields in changes.items()}
-        return ev.combined(advanced + [self._move(ends, cause, next(iter(changes)))])
+        moved = ev.combined(advanced + [self._move(ends, cause, next(iter(changes)))])
+        heading = [i for i, slot in enumerate(self._slots) if slot.target is not None]
+        return _with_warnings(moved, self._look_ahead(heading), after=True) if heading else moved
 
     def parameters_refusal(self, changes):
         """What :meth:`set_parameters` would refuse in ``changes`` (a refused
@@ -353,6 +376,7 @@ class Simulator:
         if reason:
             return ev.refused(ev.PARAMETER_VALUE, reason)
         self._start_call()
+        self._drop_lookaheads()
         advanced = self._advance_module(index, now_ns)
         self._slots[index].limits = limits
         self.revision += 1
@@ -367,8 +391,11 @@ class Simulator:
             for slot in self._slots:
                 slot.stamp_ns = max(slot.stamp_ns, now_ns)
             return self._continue()
-        return ev.combined([self._advance_module(i, now_ns)
-                            for i, slot in enumerate(self._slots) if slot.target is not None])
+        moved = ev.combined([self._advance_module(i, now_ns)
+                             for i, slot in enumerate(self._slots) if slot.target is not None])
+        later, self._look_later = self._look_later, set()
+        warnings = self._look_ahead(later) if later else self._lookahead_warnings()
+        return _with_warnings(moved, warnings, after=True)
 
     def reset(self, modules, initial_theta):
         """Start over: settle ``modules`` from ``initial_theta`` (one [t1, t2] per module;
@@ -384,6 +411,7 @@ class Simulator:
         if self._motion is not None:
             self._motion.job.cancel()
         self._motion = self._queued = None
+        self._drop_lookaheads()
         for slot in self._slots:
             slot.target = None
         self._start_call()
@@ -443,6 +471,54 @@ class Simulator:
             return None
         return JumpAhead(module=index, rho=rho, end=end, cause=cause)
 
+    def _look_ahead(self, indices):
+        """Track ahead the path of each speed-limited neck actuator of ``indices`` that
+        has a target (its earlier lookahead dropped); the warnings of those done within
+        this call.  While a path is pending (the live state is not where the actuator
+        is) they start in the first :meth:`advance` after it."""
+        if self._mechanism.has_operation_range:
+            return ()
+        for index in indices:
+            self._drop_lookaheads(index)
+            slot = self._slots[index]
+            if slot.target is None or slot.limits.max_rho_rate <= 0.0:
+                continue
+            if self.pending:
+                self._look_later.add(index)
+                continue
+            work = functools.partial(self._mechanism.ahead, self.modules, self.state, index,
+                                     slot.target)
+            self._lookaheads[index] = _Lookahead(slot.target, slot.cause, Job(work, self._clock))
+        return self._lookahead_warnings()
+
+    def _lookahead_warnings(self):
+        """Work on the lookaheads until the call's deadline (each makes progress); a
+        :class:`JumpAhead` for each that ended on a jump its actuator is still heading
+        for (one it has reached or passed meanwhile was reported as it happened)."""
+        warnings = []
+        for index, look in list(self._lookaheads.items()):
+            if not look.job.run(self._deadline):
+                continue
+            del self._lookaheads[index]
+            try:
+                end = look.job.result()
+            except SOLVER_ERRORS:           # the real path will meet and report it
+                continue
+            rho, target = self.goal(index).rho, self._slots[index].target
+            if end is not None and target == look.rho and (end.rho - rho) * (target - rho) > 0:
+                warnings.append(JumpAhead(module=index, rho=look.rho, end=end, cause=look.cause))
+        return tuple(warnings)
+
+    def _drop_lookaheads(self, index=None):
+        """Stop tracking ahead for module ``index`` (all: None): its path changed."""
+        if index is None:
+            self._look_later.clear()
+        self._look_later.discard(index)
+        for i in ([index] if index is not None else list(self._lookaheads)):
+            look = self._lookaheads.pop(i, None)
+            if look is not None:
+                look.job.cancel()
+
     def _retarget(self, index, rho, now_ns, cause):
         """A speed-limited actuator: advance to now, then head for the new target (an
         unlimited one goes there at once)."""
@@ -478,6 +554,8 @@ class Simulator:
         moved = self._move({index: self.goal(index).with_rho(new_rho)}, slot.cause, index)
         if moved.status == ev.FAILED:
             slot.target = None
+        if slot.target is None:         # there (or stopped): nothing ahead to warn of
+            self._drop_lookaheads(index)
         return moved
 
     # -- paths, in slices of bounded work ---------------------------------------------------
@@ -586,3 +664,12 @@ class Simulator:
         self.modules, self.state = tuple(modules), state
         self._views = self._mechanism.views(self.modules, state)
         self.revision += 1
+
+
+def _with_warnings(outcome, warnings, after=False):
+    """``outcome`` with early ``warnings`` before its events (after them: ``after``)."""
+    if not warnings:
+        return outcome
+    events = outcome.events + warnings if after else warnings + outcome.events
+    return Outcome(status=outcome.status, events=events, reason=outcome.reason,
+                   message=outcome.message)

@@ -55,6 +55,16 @@ MIN_STEP = 1e-6
 LANDING_OFFSET = 1e-6
 #: A jump lands at least this far (rad, max norm) from the last continuous state.
 JUMP_DISTANCE = 1e-5
+#: A critical point whose soft mode is this nearly orthogonal to dG/ds (see
+#: ``mode_alignment``) may be a branch point passed continuously: worth checking.
+#: (A perfect pitchfork's bisected departure carries ~1e-7 rad of rounding-amplified
+#: asymmetry, so ``classify``'s 1e-6 can call it a fold.)
+PASSAGE_ALIGNMENT = 1e-3
+#: A branch point is passed continuously (supercritical) when the flow frozen
+#: PASSAGE_SHRINK times closer to it rests sqrt(PASSAGE_SHRINK) times closer to the
+#: departure (the buckled minima grow like sqrt(s - s*)); accepted within this factor.
+PASSAGE_SHRINK = 16.0
+PASSAGE_SLACK = 1.6
 #: Push-off from a saddle along its unstable mode (rad).
 PUSH_OFF = 1e-7
 #: A flow is close to its rest point (see ``rest_certified``) when its force (relative
@@ -720,7 +730,8 @@ def _push_off(system, star, mode, s, push_offs):
     a, b = landings
     ambiguous = angle_distance(a.state, b.state) > 1e-6
     best = min(landings, key=lambda r: system.energy(r.state, s))
-    return Rest(best.state, ambiguous or a.ambiguous or b.ambiguous)
+    others = [r.state for r in landings if r is not best] if ambiguous else []
+    return Rest(best.state, ambiguous or a.ambiguous or b.ambiguous, others)
 
 
 def settle_reference(system, theta, s=0.0) -> Rest:
@@ -744,11 +755,26 @@ class ReferenceJump:
 
 
 @dataclass
+class ReferencePassage:
+    """A supercritical branch point passed continuously: the minimum buckles onto one of
+    two new minima that grow out of it like sqrt(s - s*) (not a jump)."""
+
+    s: float                  # critical point (solved), or the bracket's middle
+    departure: np.ndarray     # last state on the old branch (just before s)
+    onward: np.ndarray        # rest point on the buckled branch at ``s_onward``
+    s_onward: float
+    #: The other side's rest point (a perfect pitchfork: equal energies, the side is a
+    #: convention; see ``other_sides``).
+    alternatives: list = field(default_factory=list)
+
+
+@dataclass
 class ReferencePath:
     final: np.ndarray
     jumps: list = field(default_factory=list)
     steps: int = 0
     start: np.ndarray = None
+    passages: list = field(default_factory=list)
 
 
 def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
@@ -767,6 +793,10 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
             rest = None
         if rest is None:
             jump = _bisect_jump(system, s, y, s_new, None, stalled=True)
+            if isinstance(jump, ReferencePassage):
+                path.passages.append(jump)
+                s, y, slope, ds = jump.s_onward, jump.onward, None, MIN_STEP
+                continue
             if not isinstance(jump, ReferenceJump):
                 raise NoRest(f'the branch became a saddle near s={s_new!r} but no jump found')
             path.jumps.append(jump)
@@ -780,6 +810,10 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
             continue
         if suspicious:
             jump = _bisect_jump(system, s, y, s_new, rest)
+            if isinstance(jump, ReferencePassage):
+                path.passages.append(jump)
+                s, y, slope, ds = jump.s_onward, jump.onward, None, MIN_STEP
+                continue
             if isinstance(jump, ReferenceJump):
                 path.jumps.append(jump)
                 s, y, slope, ds = jump.s_after, jump.landing, None, FIRST_STEP
@@ -798,7 +832,10 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
     """Bisect [s_a, s_b] on whether the branch's minimum still continues next to the last
     rest (see ``_nearby_minimum``); then the overdamped flow from the last rest with the
     parameters at the bracket's end decides: a jump only if it lands far away.
-    Returns the :class:`ReferenceJump`, or (s, state) where the branch continues."""
+    A branch point whose landing closes in on the departure like sqrt(s - s*) as the
+    freeze moves towards s* is passed continuously (:func:`_passage`).
+    Returns the :class:`ReferenceJump`, a :class:`ReferencePassage`, or (s, state) where
+    the branch continues."""
     y_b = None if rest_b is None else rest_b.state
     while s_b - s_a > JUMP_BRACKET * max(1.0, abs(s_a)):
         s_m = 0.5 * (s_a + s_b)
@@ -807,6 +844,13 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
             s_a, y_a = s_m, near
         else:           # no minimum continues the branch here: the flow leaves (checked
             s_b = s_m   # below at the bracket's end, where the landing is computed)
+    if stalled:
+        # the branch's minimum became a saddle: passed continuously if a buckled minimum
+        # grows out of it (checked off the branch point: right at it the escape from the
+        # saddle is a flow of time ~ 1 / lambda_min, hours of integration)
+        passage = _passage(system, y_a, s_a, s_b)
+        if passage is not None:
+            return passage
     try:
         rest_b = flow_to_rest(system, y_a, s_b, push_offs=0)
     except Stalled:
@@ -820,11 +864,55 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
         rest_b = flow_to_rest(system, y_a, min(1.0, s_b + LANDING_OFFSET))
     if _continuous(system, y_a, s_b, rest_b.state):
         return s_b, rest_b.state          # continuous after all: where to step on from
+    passage = None if stalled else _passage(system, y_a, s_a, s_b)
+    if passage is not None:
+        return passage
     s_star, solved = critical_point_in(system, y_a, s_a, s_b)
     kind = classify(system, y_a, s_a)
     return ReferenceJump(s=s_star, s_before=s_a, s_after=s_b, departure=y_a,
                          landing=rest_b.state, kind=kind, solved=solved,
                          ambiguous=rest_b.ambiguous, alternatives=rest_b.alternatives)
+
+
+def _passage(system, y_a, s_a, s_b):
+    """The :class:`ReferencePassage` if the critical point bracketed by [s_a, s_b] is a
+    branch point passed continuously (a supercritical pitchfork, no jump), else None.
+    Frozen at s* + LANDING_OFFSET, the flow from the departure y_a rests on a buckled
+    minimum; frozen PASSAGE_SHRINK times closer to s*, it rests sqrt(PASSAGE_SHRINK)
+    times closer to y_a: the normal form's sqrt(s - s*).  A subcritical pitchfork's
+    landing (and a fold's) stays a finite distance away however close the freeze.
+    Only tried where the soft mode is nearly orthogonal to dG/ds (two flows each)."""
+    if mode_alignment(system, y_a, s_a) > PASSAGE_ALIGNMENT:
+        return None
+    s_star = critical_point_in(system, y_a, s_a, s_b)[0]
+    s_far = min(1.0, s_star + LANDING_OFFSET)
+    if not s_far > s_star:
+        return None
+    try:
+        rest = flow_to_rest(system, y_a, s_far)
+        near = flow_to_rest(system, y_a, s_star + (s_far - s_star) / PASSAGE_SHRINK).state
+    except (NoRest, Stalled):
+        return None
+    far = rest.state
+    expected = angle_distance(far, y_a) / math.sqrt(PASSAGE_SHRINK)
+    if not (angle_distance(far, y_a) > JUMP_DISTANCE
+            and expected / PASSAGE_SLACK <= angle_distance(near, y_a) <= expected * PASSAGE_SLACK):
+        return None
+    return ReferencePassage(s=s_star, departure=y_a, onward=far, s_onward=s_far,
+                            alternatives=rest.alternatives)
+
+
+def other_sides(system, path):
+    """The reference paths that took the other side of a perfect pitchfork passed
+    continuously (equal energies: which side is a convention): for each passage with an
+    alternative, the path up to it followed on from the other side."""
+    for passage in path.passages:
+        for other in passage.alternatives:
+            onward = quasi_static_path(system, other, passage.s_onward)
+            yield ReferencePath(
+                final=onward.final, start=path.start, steps=path.steps + onward.steps,
+                jumps=[j for j in path.jumps if j.s < passage.s] + onward.jumps,
+                passages=[p for p in path.passages if p.s <= passage.s] + onward.passages)
 
 
 def _continuous(system, y_a, s_b, landing):
@@ -880,6 +968,12 @@ def critical_point_in(system, y_a, s_a, s_b, slack=1e-10):
 
 def classify(system, y, s, h=1e-6):
     """'branch_point' if the critical mode is orthogonal to dG/ds, else 'fold'."""
+    return 'branch_point' if mode_alignment(system, y, s, h) < 1e-6 else 'fold'
+
+
+def mode_alignment(system, y, s, h=1e-6):
+    """|psi . dG/ds| / (|psi| |dG/ds|), psi the softest mode: ~1 at a fold, 0 at a
+    branch point (0 too if the parameters do not move the equilibrium conditions)."""
     _, modes = system.stability(y, s)
     psi = modes[:, 0]
     if isinstance(system, NeckSystem):
@@ -889,9 +983,9 @@ def classify(system, y, s, h=1e-6):
     else:
         g_s = (system.gradient(y, s + h) - system.gradient(y, s - h)) / (2 * h)
     norm = float(np.linalg.norm(g_s))
-    if norm == 0.0 or abs(float(psi @ g_s)) < 1e-6 * norm * float(np.linalg.norm(psi)):
-        return 'branch_point'
-    return 'fold'
+    if norm == 0.0:
+        return 0.0
+    return abs(float(psi @ g_s)) / (norm * float(np.linalg.norm(psi)))
 
 
 def all_module_equilibria(params):

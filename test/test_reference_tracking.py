@@ -65,8 +65,8 @@ from tensegrity_ros.core.continuation import TrackingError
 from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 from tensegrity_ros.core.supported_range import LOAD_RATIO
 
-from reference_paths import (FIELDS, ModuleSystem, NeckSystem, angle_distance, quasi_static_path,
-                             settle_reference)
+from reference_paths import (FIELDS, ModuleSystem, NeckSystem, angle_distance, other_sides,
+                             quasi_static_path, settle_reference)
 
 #: A reported jump and the reference's must be this close in s.
 LOCATION_TOL = 1e-7
@@ -179,7 +179,7 @@ C2_RHO = 0.874533441919229       # eq. (16)
 def test_reference_finds_fig8a_c1_and_c2():
     down = quasi_static_path(ModuleSystem(fig8(0.5), fig8(0.1)), [-1.0, -1.0])
     (c1,) = down.jumps
-    assert c1.kind == 'branch_point'
+    assert c1.kind == 'branch_point' and not down.passages     # subcritical: a jump
     assert abs((0.5 - 0.4 * c1.s) - C1_RHO) < 1e-9
     assert np.all(np.cos(c1.landing) < np.cos(1.0)) or np.all(np.sin(c1.landing) > 0.5)
     up = quasi_static_path(ModuleSystem(fig8(0.5), fig8(1.2)), [-1.0, -1.0])
@@ -397,13 +397,42 @@ def test_every_reported_neck_jump_lands_on_a_stable_equilibrium(seed):
 # -- necks ----------------------------------------------------------------------------------
 
 def compare_neck(start, end, theta):
-    """The neck tracker against the reference (N = 1: the module's reference)."""
+    """The neck tracker against the reference (N = 1: the module's reference), the
+    branch points passed continuously included."""
     system = ModuleSystem(start.modules[0], end.modules[0]) if len(start.modules) == 1 \
         else NeckSystem(start.modules, end.modules)
     ref = quasi_static_path(system, np.ravel(theta))
     got = track_stack(start, end, np.asarray(theta, dtype=float).reshape(-1, 2))
-    assert_same_neck_path(system, got, ref)
+    ref = on_either_side(system, got, ref, assert_same_neck_path)
+    assert_same_passages([p.s for p in got.passages], ref)
     return got, ref
+
+
+def on_either_side(system, got, ref, check):
+    """``check(system, got, ref)``, or against the reference that took the other side of
+    a perfect pitchfork passed continuously (:func:`reference_paths.other_sides`): the
+    tracker takes the side its critical mode's first clear component points to, the
+    reference the lower-energy push-off; with equal energies both are right.  Returns the
+    reference path that matched."""
+    try:
+        check(system, got, ref)
+        return ref
+    except AssertionError as first:
+        for other in other_sides(system, ref):
+            try:
+                check(system, got, other)
+                return other
+            except AssertionError:
+                pass
+        raise first
+
+
+def assert_same_passages(mine, ref):
+    """The branch points passed continuously (s of each, the tracker's) against the
+    reference's: the same count, each within LOCATION_TOL."""
+    theirs = [p.s for p in ref.passages]
+    assert len(mine) == len(theirs), (mine, theirs)
+    assert all(abs(a - b) <= LOCATION_TOL for a, b in zip(sorted(mine), theirs)), (mine, theirs)
 
 
 def assert_same_neck_path(system, got, ref):
@@ -553,3 +582,41 @@ def test_near_symmetric_neck(n, ramp, kind, eps):
     """Paper modules stacked, one tiny asymmetry: the same jumps as the reference (the
     near-pitchfork snaps of N = 2 are folds, N = 3 buckles with no event)."""
     compare_near_symmetric(n, ramp, kind, eps)
+
+
+# -- perfect (exactly symmetric) modules and necks: branch points passed continuously ------------
+
+@pytest.mark.parametrize('rho_end', [0.75, 0.5])
+def test_perfect_module_passes_its_flat_pitchfork_like_the_reference(rho_end):
+    """The unloaded paper module from rho 1.3 down through rho = L = 1: its flat minimum
+    buckles up or down (a supercritical pitchfork, no jump), at exactly rho = 1; which
+    side is a convention (the reference's other side is tried too)."""
+    start, end = ModuleParams.paper(1.3), ModuleParams.paper(rho_end)
+    theta = np.asarray(settle(start, (0.8, 0.8)).theta)
+    system = ModuleSystem(start, end)
+    got = track_module(start, end, theta)
+    ref = on_either_side(system, got, quasi_static_path(system, theta),
+                         lambda _, g, r: assert_same_path(g, r))
+    s_flat = (1.3 - 1.0) / (1.3 - rho_end)
+    assert abs(ref.passages[0].s - s_flat) <= LOCATION_TOL
+    assert_same_passages([(1.3 - p.rho) / (1.3 - rho_end) for p in got.passages], ref)
+
+
+#: Perfect necks (paper modules stacked, upright, no asymmetry): 'head' = head load 0 ->
+#: -40 N per top node at rho 0.6 (N = 2 snaps at a subcritical branch point; N = 3
+#: buckles sideways continuously at s = 0.1713456, then folds at 0.2921059), 'rho' =
+#: every chord 0.9 -> 0.2 under -5 N per top node.
+PERFECT_NECKS = [(2, 'head'), (3, 'head'), (2, 'rho')]
+
+
+@pytest.mark.parametrize('n, ramp', PERFECT_NECKS)
+def test_perfect_neck_against_the_reference(n, ramp):
+    """Exactly symmetric necks: the same jumps and the same continuous passages (the
+    reference's: its landing closes in like sqrt(s - s*) as the freeze nears s*)."""
+    if ramp == 'head':
+        start, end = paper_neck(n, 0.6, 0.0), paper_neck(n, 0.6, -40.0)
+    else:
+        start, end = paper_neck(n, 0.9, -5.0), paper_neck(n, 0.2, -5.0)
+    got, ref = compare_neck(start, end, settle_stack(start, upright(n, start.modules[0].rho)).theta)
+    if (n, ramp) == (3, 'head'):
+        assert len(ref.passages) == 1 and [j.kind for j in got.jumps] == ['fold']

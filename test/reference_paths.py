@@ -729,8 +729,13 @@ def _push_off(system, star, mode, s, push_offs):
                              push_offs - 1, anchor=star) for sign in (1.0, -1.0)]
     a, b = landings
     ambiguous = angle_distance(a.state, b.state) > 1e-6
-    best = min(landings, key=lambda r: system.energy(r.state, s))
-    others = [r.state for r in landings if r is not best] if ambiguous else []
+    energies = [system.energy(r.state, s) for r in landings]
+    best = landings[int(np.argmin(energies))]
+    # the other way is an alternative only where it is as low (mirror images of a
+    # symmetric saddle: which one a perfect mechanism takes is a convention)
+    same = 1e-12 * system.rate(s)
+    others = [r.state for r, e in zip(landings, energies)
+              if ambiguous and r is not best and e <= min(energies) + same]
     return Rest(best.state, ambiguous or a.ambiguous or b.ambiguous, others)
 
 

@@ -123,7 +123,10 @@ class TrackerSettings:
 
 @dataclass(frozen=True)
 class Event:
-    """A jump: the stable branch ended (``fold``) or lost stability (``branch_point``) at ``s``."""
+    """A jump: the stable branch ended (``fold``) or lost stability (``branch_point``) at ``s``.
+
+    ``landing`` is a verified stable equilibrium at ``landing_s``, which is ``s`` unless
+    that minimum does not exist back at ``s`` (see ``_Tracker.landing_at_event``)."""
 
     kind: str
     s: float
@@ -751,16 +754,28 @@ class _Tracker:
     def landing_at_event(self, landing, s_land, s_star):
         """The landing's stable equilibrium at the event's own s: (state, s).
 
-        The mechanism lands with the parameters frozen a little past s*, so the
-        landed minimum is followed back to s* (Newton; the landing branch is regular
-        there), so that a reported jump goes from and to equilibria at one parameter
-        value.  Tracking goes on from the frozen landing.  If the minimum does not
-        persist back to s* the frozen landing is reported with its own s."""
+        The mechanism lands with the parameters frozen a little past s* (up to 1e-3
+        in s), so the landed minimum is followed back to s*, so that a reported jump
+        goes from and to equilibria at one parameter value: by one Newton step where
+        the landing hardly moves, else by tracking it back (a soft landing valley, e.g.
+        a neck of k = 10 N/m, moves its minimum by up to 0.8 rad over that offset).
+        Tracking goes on from the frozen landing.  Only where the landing minimum does
+        not persist back to s* (it is born past s*, or it buckles or times out on the
+        way back) is it reported at its own s_land, and the jump says so
+        (``Event.landing_s != Event.s``)."""
         back = self.newton(landing, s_star)
         if (back is not None and self.separation(back, landing) < self.settings.max_state_step
                 and self.definite(self.eigenvalues(back, s_star))):
             return back, s_star
-        return landing, s_land
+        followed = _Tracker(_Segment(self.problem, s_land, s_star), self.settings).run(landing)
+        if followed.status != 'ok' or followed.events or followed.passages:
+            return landing, s_land
+        polished = self.newton(followed.state, s_star)     # the segment ends at s* to rounding
+        if (polished is not None
+                and self.separation(polished, followed.state) <= self.settings.same_state_tol
+                and self.definite(self.eigenvalues(polished, s_star))):
+            return polished, s_star
+        return followed.state, s_star
 
     def continuous(self, kind, s_star, y_star, s_land, landing):
         """Whether the landing is the tracked minimum going on rather than a jump.

@@ -853,7 +853,12 @@ def stack_equilibrium_at(stack: Stack, state) -> StackEquilibrium:
 
 @dataclass(frozen=True)
 class StackJump:
-    """A jump of the stack: ``theta`` of every module before (critical) and after (landing)."""
+    """A jump of the stack: ``theta`` of every module before (critical) and after (landing).
+
+    ``to_theta`` is a stable equilibrium of ``stack`` (the parameters at the jump's s),
+    except where the landing minimum does not exist there (it appears only past s): then
+    ``landing_stack`` (otherwise ``stack``) holds the parameters it is an equilibrium of,
+    and ``landed_past`` is true."""
 
     kind: str
     s: float
@@ -861,6 +866,11 @@ class StackJump:
     from_theta: np.ndarray
     to_theta: np.ndarray
     ambiguous: bool = False
+    landing_stack: Stack | None = None
+
+    @property
+    def landed_past(self):
+        return self.landing_stack is not None and self.landing_stack != self.stack
 
 
 @dataclass(frozen=True)
@@ -931,7 +941,8 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
         result = _continuation.track(path, y0, settings)
     jumps = tuple(StackJump(kind=e.kind, s=e.s, stack=path.params(e.s),
                             from_theta=path.angles(e.state, e.s),
-                            to_theta=path.angles(e.landing, e.landing_s), ambiguous=e.ambiguous)
+                            to_theta=path.angles(e.landing, e.landing_s), ambiguous=e.ambiguous,
+                            landing_stack=path.params(e.landing_s))
                   for e in result.events)
     passages = tuple(StackPassage(s=s, stack=path.params(s), theta=path.angles(y, s))
                      for s, y in result.passages)

@@ -26,6 +26,9 @@ class ModuleJump:
     ``params.rho`` is the critical actuator length; ``from_theta`` the critical
     configuration, ``to_theta`` the stable equilibrium the mechanism lands on.
     ``ambiguous`` is set when the two sides of a branch point land differently.
+    ``to_theta`` is an equilibrium of ``params`` except where the landing minimum does
+    not exist there (it appears only past the jump): then ``landing_params`` (otherwise
+    ``params``) holds the parameters it is an equilibrium of, and ``landed_past`` is true.
     """
 
     kind: str
@@ -34,6 +37,11 @@ class ModuleJump:
     from_theta: np.ndarray
     to_theta: np.ndarray
     ambiguous: bool = False
+    landing_params: ModuleParams | None = None
+
+    @property
+    def landed_past(self):
+        return self.landing_params is not None and self.landing_params != self.params
 
 
 @dataclass(frozen=True)
@@ -242,7 +250,7 @@ def track_module(start: ModuleParams, end: ModuleParams, theta,
         result = _continuation.track(path, theta, settings)
     jumps = tuple(ModuleJump(kind=e.kind, s=e.s, params=path.params(e.s),
                              from_theta=_wrap(e.state), to_theta=_wrap(e.landing),
-                             ambiguous=e.ambiguous)
+                             ambiguous=e.ambiguous, landing_params=path.params(e.landing_s))
                   for e in result.events)
     reached = end if result.s == 1.0 else path.params(result.s)
     return ModuleTrack(final=equilibrium_at(reached, result.state), end=reached, jumps=jumps,

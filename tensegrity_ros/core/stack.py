@@ -791,7 +791,10 @@ class StackEquilibrium:
     Hessian (N/m, ascending), ``actuator_forces`` (N,), ``state`` the tracker state,
     ``head_position`` (2,) and ``head_angle`` the midpoint and direction of the top chord.
     The nodes and the head are made on first use, from ``placement``: a node tracks a
-    state per command (1 kHz) but reads them only at publish_rate.
+    state per command (1 kHz) but reads them only at publish_rate.  ``certificate`` is
+    the tracker's (:attr:`.continuation.Track.certificate`): non-empty where the state is
+    so close past a passed branch point that its positive definiteness was shown by the
+    branch point's normal form, not by the margin test (``stable`` accepts either).
     """
 
     theta: np.ndarray
@@ -805,6 +808,7 @@ class StackEquilibrium:
     parameters: bytes = field(default=None, repr=False, compare=False)
     #: (node table, node base offsets, rod vectors (complex), rho0): ``nodes`` from them.
     placement: tuple = field(default=None, repr=False, compare=False)
+    certificate: str = ''
 
     @functools.cached_property
     def nodes(self):
@@ -826,14 +830,15 @@ class StackEquilibrium:
     @property
     def stable(self):
         ev = self.eigenvalues
-        return bool(ev[0] > DEFINITENESS_TOL * max(abs(ev[-1]), 1e-300))
+        return bool(ev[0] > DEFINITENESS_TOL * max(abs(ev[-1]), 1e-300)
+                    or (self.certificate and ev[0] > 0.0))
 
     @property
     def stability_margin(self):
         return float(self.eigenvalues[0])
 
 
-def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
+def _record(path, y, s, eigenvalues=None, energy=None, residual=None, certificate=''):
     p = path.point(y, s)
     top = path.topology
     return StackEquilibrium(
@@ -843,7 +848,8 @@ def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
         actuator_forces=path.actuator_forces_at(p),
         residual=float(np.max(np.abs(path.residual_at(p)))) if residual is None else residual,
         state=np.array(y), parameters=path.parameter_vector(s).tobytes(),
-        placement=(top.node_rods_c, top.node_base, p.rods, p.values.rho0))
+        placement=(top.node_rods_c, top.node_base, p.rods, p.values.rho0),
+        certificate=certificate)
 
 
 def stack_equilibrium_at(stack: Stack, state) -> StackEquilibrium:
@@ -935,7 +941,7 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
         keep_final_point(final, path, quick[4])
         return StackTrack(final=final, end=end, jumps=(), steps=1)
     try:
-        result = _continuation.track(path, y0, settings)
+        result = _continuation.track(path, y0, settings, known.certificate if known else '')
     except _continuation.TrackingError:
         y0 = _continuation.settle(path, path.project(y0, 0.0), 0.0, settings)
         result = _continuation.track(path, y0, settings)
@@ -947,7 +953,7 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
     passages = tuple(StackPassage(s=s, stack=path.params(s), theta=path.angles(y, s))
                      for s, y in result.passages)
     reached = end if result.s == 1.0 else path.params(result.s)
-    final = _record(path, result.state, result.s)
+    final = _record(path, result.state, result.s, certificate=result.certificate)
     return StackTrack(final=final, end=reached, jumps=jumps, status=result.status,
                       message=result.message, steps=result.steps, passages=passages)
 

@@ -52,7 +52,10 @@ class ModuleTrack:
     (``end`` is where tracking stopped; ``final`` is still a verified stable
     equilibrium there).  ``final`` is never an unverified state.  ``passages``:
     the parameters of each supercritical branch point passed continuously (the
-    module buckled smoothly onto a new minimum: not a jump).
+    module buckled smoothly onto a new minimum: not a jump).  ``certificate``: as
+    :attr:`.continuation.Track.certificate` (non-empty where ``final`` is so close past
+    such a branch point that it is shown a minimum by the normal form; its
+    classification, whose tolerance is coarser, may then read 'degenerate').
     """
 
     final: Equilibrium
@@ -62,6 +65,7 @@ class ModuleTrack:
     message: str = ''
     steps: int = 0
     passages: tuple = ()
+    certificate: str = ''
 
 
 class ModulePath:
@@ -235,16 +239,18 @@ def _checked_theta(theta):
 
 
 def track_module(start: ModuleParams, end: ModuleParams, theta,
-                 settings: TrackerSettings = TrackerSettings()) -> ModuleTrack:
+                 settings: TrackerSettings = TrackerSettings(), certificate='') -> ModuleTrack:
     """Follow the stable equilibrium at ``theta`` from ``start`` to ``end``.
 
     If ``theta`` is not a stable equilibrium at ``start`` the mechanism first
     settles (see :func:`settle`).  Every jump on the way is in ``jumps``.
+    ``certificate``: the previous command's :attr:`ModuleTrack.certificate` where
+    ``theta`` is its final state.
     """
     theta = _checked_theta(theta)
     path = ModulePath(start, end)
     try:
-        result = _continuation.track(path, theta, settings)
+        result = _continuation.track(path, theta, settings, certificate)
     except _continuation.TrackingError:
         theta = _continuation.settle(path, theta)
         result = _continuation.track(path, theta, settings)
@@ -255,4 +261,5 @@ def track_module(start: ModuleParams, end: ModuleParams, theta,
     reached = end if result.s == 1.0 else path.params(result.s)
     return ModuleTrack(final=equilibrium_at(reached, result.state), end=reached, jumps=jumps,
                        status=result.status, message=result.message, steps=result.steps,
-                       passages=tuple(path.params(s) for s, _ in result.passages))
+                       passages=tuple(path.params(s) for s, _ in result.passages),
+                       certificate=result.certificate)

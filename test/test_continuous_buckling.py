@@ -78,7 +78,9 @@ def test_a_neck_command_ending_just_past_its_passage_ends_ok():
     9e-8, below DEFINITENESS_TOL up to 1e-7: these ended 'failed' before) ends ok on a
     stable state (certified by the pitchfork's normal form where the margin test cannot
     see it), on the square root through the passage and a longer command's state, and
-    the next command on from there ends where one command all the way does."""
+    the next command on from there ends where one command all the way does.  Coming
+    back down the buckled branch to the same load ends ok on the same state (to 1e-7:
+    near the branch point Newton pins the state along the soft mode only to ~1e-8)."""
     start = neck(3, 0.6, 1.0, 100.0, 0.0)
     first = settle_stack(start, upright_guess(start.modules))
     whole = track_stack(start, at_load(start, -10.0), first)
@@ -95,12 +97,16 @@ def test_a_neck_command_ending_just_past_its_passage_ends_ok():
         on = track_stack(there, at_load(start, -10.0), result.final)
         assert on.status == 'ok' and on.final.stable and on.jumps == ()
         np.testing.assert_allclose(on.final.theta, whole.final.theta, atol=1e-9)
+        back = track_stack(at_load(start, -10.0), there, whole.final)
+        assert back.status == 'ok' and back.final.stable and back.jumps == (), past
+        np.testing.assert_allclose(back.final.theta, result.final.theta, atol=1e-7)
 
 
 def test_a_module_command_ending_just_past_its_passage_ends_ok():
     """The unloaded paper module buckles continuously at rho = L = 1 going down: commands
     ending 1e-9 .. 1e-5 in rho past it end ok on a minimum on the square root (to 1e-3;
-    8e-5 seen), and go on from there to where one command all the way ends."""
+    8e-5 seen), and go on from there to where one command all the way ends; coming
+    back up to the same rho ends on the same state."""
     start = ModuleParams.paper(1.3)
     upright = [e.theta for e in equilibria(start).stable if np.allclose(e.theta, 0.0)][0]
     whole = track_module(start, ModuleParams.paper(0.5), upright)
@@ -115,3 +121,7 @@ def test_a_module_command_ending_just_past_its_passage_ends_ok():
                           result.final.theta, certificate=result.certificate)
         assert on.status == 'ok' and on.jumps == ()
         np.testing.assert_allclose(on.final.theta, whole.final.theta, atol=1e-9)
+        back = track_module(ModuleParams.paper(0.5), ModuleParams.paper(1.0 - past),
+                            whole.final.theta)
+        assert back.status == 'ok' and back.jumps == (), past
+        np.testing.assert_allclose(back.final.theta, result.final.theta, atol=1e-9)

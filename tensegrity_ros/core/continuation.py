@@ -358,8 +358,11 @@ class _Tracker:
             ds = min(ds, s_end - s,
                      step_bound(self.step_norm(tangent), eigenvalues[0], rate, cfg))
             y1, eig1, reason = self.try_step(y, s, tangent, ds)
-            if not reason or (reason == 'indefinite' and self.still_certified(eigenvalues, eig1)):
-                self.certificate = self.certificate if reason else ''
+            certified = reason == 'indefinite' and (
+                self.still_certified(eigenvalues, eig1)
+                or self.linear_approach(eigenvalues, eig1, rate, ds, s_end - s))
+            if not reason or certified:
+                self.certificate = PITCHFORK_CERTIFIED if certified else ''
                 rate = self.last_rate = (eig1[0] - eigenvalues[0]) / ds
                 y, s, eigenvalues = y1, s + ds, eig1
                 self.rescale(eigenvalues)
@@ -430,6 +433,21 @@ class _Tracker:
         from the branch point, so the new state lies further along it."""
         return bool(self.certificate and eigenvalues[0] > previous[0]
                     and self.soft_minimum(eigenvalues))
+
+    def linear_approach(self, previous, eigenvalues, rate, ds, remaining):
+        """A step towards a branch point that ends below the margin test is still on a
+        minimum where lambda_min is positive and where the linear law predicts it (within
+        25 %) from the verified state before and the rate over the step before that: near
+        a simple branch point lambda_min = c (s* - s), so a command ending within ~1e-6
+        before one (e.g. on the buckled branch going back) ends on a minimum, while
+        rounding noise, ~1e-16 of lambda_max, cannot match the law.  Only where the law
+        keeps lambda_min positive up to the command's end (``remaining`` in s): a command
+        through the branch point is left to the event's localisation, as before."""
+        if not (rate is not None and rate < 0.0 and self.soft_minimum(eigenvalues)
+                and previous[0] + rate * remaining > 0.0):
+            return False
+        predicted = previous[0] + rate * ds
+        return bool(predicted > 0.0 and abs(eigenvalues[0] - predicted) <= 0.25 * predicted)
 
     def rescale(self, eigenvalues):
         """Tolerances follow the stiffness scale: the start's, or the local one where

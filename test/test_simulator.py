@@ -16,6 +16,7 @@ from tensegrity_ros.core import ModuleParams, TrackingError, equilibria, settle,
 from tensegrity_ros.core.events import Jump, JumpAhead, Passage, TrackingFailure, combined
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
+from tensegrity_ros.core.start_state import upright_guess
 
 
 def wrapped(a, b):
@@ -329,6 +330,29 @@ def test_a_neck_buckling_sideways_continuously_is_no_jump():
     assert all(sim.status(i).jumps_total == 0 for i in range(3))
     np.testing.assert_allclose(sim.state.theta, expected.final.theta, atol=1e-9)
     assert abs(sim.state.head_angle) > 0.05 and verified_minimum(sim)
+
+
+def test_a_neck_load_ending_just_past_its_sideways_buckling_is_taken():
+    """N = 3 upright paper neck, head load set to 1e-8 past its sideways buckling (-6.854 N
+    per node), where lambda_min / lambda_max is 9e-11: the tracker's state is certified by
+    the branch point's normal form (Track.certificate), and the simulator takes it (its
+    final check alone, lambda_min > 1e-9 lambda_max, fails it: 'tracker returned an
+    unstable state'); a further load goes on from it to where the stack tracker goes in
+    one command."""
+    modules = tuple(ModuleParams.paper(0.6) for _ in range(3))
+    guess = upright_guess(modules)
+    sim = Simulator(modules, guess, **UNBOUNDED)
+    load = -6.853824673228113 * (1.0 + 1e-8)
+    outcome = finished(sim, sim.set_parameters({2: dict(f3y=load, f4y=load)}, 0, 'load'))
+    assert outcome.status == 'ok' and not outcome.of_type(TrackingFailure)
+    assert len(outcome.of_type(Passage)) == 1 and not outcome.of_type(Jump)
+    assert sim.state.stable and sim.state.certificate and not verified_minimum(sim)
+    outcome = finished(sim, sim.set_parameters({2: dict(f3y=-10.0, f4y=-10.0)}, 0, 'load'))
+    assert outcome.status == 'ok' and verified_minimum(sim)
+    stack = Stack(modules)
+    expected = track_stack(stack, stack.with_module(2, f3y=-10.0, f4y=-10.0),
+                           settle_stack(stack, guess))
+    np.testing.assert_allclose(sim.state.theta, expected.final.theta, atol=1e-9)
 
 
 def test_a_neck_speed_limit_moves_one_module_at_its_rate():

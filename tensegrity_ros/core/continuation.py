@@ -24,6 +24,10 @@ overdamped gradient flow with the parameters frozen just past the event takes it
 where the landing closes in on the departure as that offset shrinks, the minimum
 simply goes on (no event).
 Tolerances follow the local stiffness scale, so every magnitude works.
+A reported jump lands on a minimum at the event's own s (the frozen landing followed
+back to s*).  A command ending within ~1e-6 in s past a passed branch point, where
+the buckled minimum's lambda_min is below the margin test, ends on a state certified
+by the pitchfork's normal form instead (``Track.certificate``).
 """
 from __future__ import annotations
 
@@ -40,6 +44,8 @@ from .tolerances import DEFINITENESS_TOL
 
 FOLD = 'fold'
 BRANCH_POINT = 'branch_point'
+#: A final state certified by a passed pitchfork's normal form (see ``_Tracker.buckled_at``).
+PITCHFORK_CERTIFIED = 'pitchfork_normal_form'
 
 
 class PathProblem(Protocol):
@@ -123,7 +129,10 @@ class TrackerSettings:
 
 @dataclass(frozen=True)
 class Event:
-    """A jump: the stable branch ended (``fold``) or lost stability (``branch_point``) at ``s``."""
+    """A jump: the stable branch ended (``fold``) or lost stability (``branch_point``) at ``s``.
+
+    ``landing`` is a verified stable equilibrium at ``landing_s``, which is ``s`` unless
+    that minimum does not exist back at ``s`` (see ``_Tracker.landing_at_event``)."""
 
     kind: str
     s: float
@@ -141,6 +150,11 @@ class Track:
     ``state`` has always passed the residual and positive-definiteness checks.
     ``passages``: (s, critical state) of each supercritical branch point the state
     passed continuously (it buckled smoothly onto a new minimum: not a jump, no event).
+    ``certificate`` says how ``state`` was shown positive definite: ``''`` by the margin
+    test (lambda_min > definiteness_tol * lambda_max), or :data:`PITCHFORK_CERTIFIED`:
+    the command ended so close past a passed branch point (~1e-6 in s) that the
+    buckled minimum's lambda_min is below that margin, and it is shown positive by the
+    branch point's normal form instead (``_Tracker.buckled_at``).
     """
 
     state: np.ndarray
@@ -151,6 +165,7 @@ class Track:
     message: str = ''
     steps: int = 0
     passages: tuple = ()
+    certificate: str = ''
 
 
 class _FlowBudgetExceeded(Exception):
@@ -227,6 +242,7 @@ class _Tracker:
         self.last_rate = None     # d lambda_min / ds over the last accepted step
         self.base_scale = None    # the stability scale at the start
         self.passages = []        # (s, state) of the branch points passed continuously
+        self.certificate = ''     # how the final state's definiteness was shown (Track)
         self.deadline = (None if settings.time_budget is None
                          else time.perf_counter() + settings.time_budget)
         weights = getattr(problem, 'state_weights', None)
@@ -296,10 +312,16 @@ class _Tracker:
             return y1, eigenvalues, 'indefinite'
         return y1, eigenvalues, ''
 
-    def run(self, y, s_end=1.0):
+    def run(self, y, s_end=1.0, certificate=''):
         """The main loop: natural steps; an arclength step where one is rejected; events
-        only where a test function changes sign (or the branch turns) between verified states."""
+        only where a test function changes sign (or the branch turns) between verified states.
+
+        ``certificate`` (a previous :class:`Track`'s, for its final state as the start)
+        lets a start certified by a pitchfork's normal form be taken: its steps are
+        accepted while lambda_min stays positive and grows (:meth:`still_certified`),
+        until one passes the margin test."""
         cfg = self.settings
+        self.certificate = certificate
         s = 0.0
         eigenvalues = self.eigenvalues(y, s)
         self.rescale(eigenvalues)
@@ -313,7 +335,9 @@ class _Tracker:
             raise TrackingError('the start state is not an equilibrium')
         y = y if polished is None else polished
         eigenvalues = self.eigenvalues(y, s)
-        if not self.definite(eigenvalues):
+        if self.definite(eigenvalues):
+            self.certificate = ''
+        elif not (self.certificate and self.soft_minimum(eigenvalues)):
             raise TrackingError('the start state is not a stable equilibrium')
         events = []
         ds, rate = 1.0, None
@@ -334,7 +358,11 @@ class _Tracker:
             ds = min(ds, s_end - s,
                      step_bound(self.step_norm(tangent), eigenvalues[0], rate, cfg))
             y1, eig1, reason = self.try_step(y, s, tangent, ds)
-            if not reason:
+            certified = reason == 'indefinite' and (
+                self.still_certified(eigenvalues, eig1)
+                or self.linear_approach(eigenvalues, eig1, rate, ds, s_end - s))
+            if not reason or certified:
+                self.certificate = PITCHFORK_CERTIFIED if certified else ''
                 rate = self.last_rate = (eig1[0] - eigenvalues[0]) / ds
                 y, s, eigenvalues = y1, s + ds, eig1
                 self.rescale(eigenvalues)
@@ -393,6 +421,34 @@ class _Tracker:
         eigenvalues = self.eigenvalues(y, s_end)
         return ('regular', y, s_end, eigenvalues) if self.definite(eigenvalues) else None
 
+    def soft_minimum(self, eigenvalues):
+        """lambda_min positive and every other eigenvalue passes the margin test."""
+        return bool(eigenvalues[0] > 0.0
+                    and (len(eigenvalues) == 1 or self.definite(eigenvalues[1:])))
+
+    def still_certified(self, previous, eigenvalues):
+        """A step from a pitchfork-certified state (``self.certificate``) to one still
+        below the margin test keeps the certificate where lambda_min grew (and the step
+        passed every other check): on the buckled branch lambda_min grows linearly away
+        from the branch point, so the new state lies further along it."""
+        return bool(self.certificate and eigenvalues[0] > previous[0]
+                    and self.soft_minimum(eigenvalues))
+
+    def linear_approach(self, previous, eigenvalues, rate, ds, remaining):
+        """A step towards a branch point that ends below the margin test is still on a
+        minimum where lambda_min is positive and where the linear law predicts it (within
+        25 %) from the verified state before and the rate over the step before that: near
+        a simple branch point lambda_min = c (s* - s), so a command ending within ~1e-6
+        before one (e.g. on the buckled branch going back) ends on a minimum, while
+        rounding noise, ~1e-16 of lambda_max, cannot match the law.  Only where the law
+        keeps lambda_min positive up to the command's end (``remaining`` in s): a command
+        through the branch point is left to the event's localisation, as before."""
+        if not (rate is not None and rate < 0.0 and self.soft_minimum(eigenvalues)
+                and previous[0] + rate * remaining > 0.0):
+            return False
+        predicted = previous[0] + rate * ds
+        return bool(predicted > 0.0 and abs(eigenvalues[0] - predicted) <= 0.25 * predicted)
+
     def rescale(self, eigenvalues):
         """Tolerances follow the stiffness scale: the start's, or the local one where
         the branch has softened (relative, so every magnitude works; never looser
@@ -408,7 +464,7 @@ class _Tracker:
     def result(self, y, s, eigenvalues, events, status='ok', message=''):
         return Track(state=y, s=s, eigenvalues=np.asarray(eigenvalues), events=tuple(events),
                      status=status, message=message, steps=self.steps,
-                     passages=tuple(self.passages))
+                     passages=tuple(self.passages), certificate=self.certificate)
 
     def eigenvalue_rate(self, y, s, tangent, lam):
         """d lambda_min / ds along the branch, by a small forward difference."""
@@ -680,7 +736,7 @@ class _Tracker:
             if back.status != 'ok' or back.events:
                 raise TrackingError(f'the landing after the {kind} at s={s_star!r} does not '
                                     f'persist to the end of the command')
-            landing, s_land = back.state, s_end
+            landing, s_land, self.certificate = back.state, s_end, back.certificate
         if event is None:
             return landing, s_land, None
         at_event, s_at = self.landing_at_event(landing, s_land, s_star)
@@ -733,34 +789,71 @@ class _Tracker:
         if back.status != 'ok' or back.events:
             raise TrackingError(f'the buckled state after the branch point at s={s_star!r} '
                                 f'could not be followed back to the end of the command')
+        self.certificate = back.certificate
         return back.state, s_end
 
     def buckled_at(self, s_star, y_star, y, s, s_end):
         """The buckled minimum at s_end in (s*, s), from the one found at s: Newton from
         the parabola through both (amplitude ~ sqrt(s - s*)); ``None`` unless it converges
-        on the same side, near the guess, to a verified minimum."""
+        on the same side, near the guess, to a verified minimum.
+
+        Verified by the margin test, or, within ~1e-6 in s of s* where the buckled
+        branch's lambda_min (growing linearly from zero) is below that margin, by the
+        pitchfork's normal form (:meth:`pitchfork_certified`); the command then ends
+        with ``Track.certificate`` saying so."""
         ratio = math.sqrt((s_end - s_star) / (s - s_star))
         guess = y_star + ratio * (y - y_star)
         found = self.newton(guess, s_end)
         if (found is None or (found - y_star) @ (y - y_star) <= 0.0
-                or self.separation(found, guess) > 0.5 * self.separation(guess, y_star)
-                or not self.definite(self.eigenvalues(found, s_end))):
+                or self.separation(found, guess) > 0.5 * self.separation(guess, y_star)):
             return None
-        return found
+        eigenvalues = self.eigenvalues(found, s_end)
+        if self.definite(eigenvalues):
+            return found
+        if self.pitchfork_certified(eigenvalues, self.eigenvalues(y, s), ratio ** 2):
+            self.certificate = PITCHFORK_CERTIFIED
+            return found
+        return None
+
+    def pitchfork_certified(self, eigenvalues, far, fraction):
+        """Whether a buckled state a ``fraction`` of the way (in s) from a supercritical
+        branch point to a verified buckled minimum (eigenvalues ``far``, with a 100x
+        margin) is a minimum although its lambda_min is below the margin test.
+
+        On the buckled branch lambda_min = c (s - s*) (1 + O(s - s*)) (the normal form
+        of a pitchfork), so it is predicted as ``fraction * far[0]``.  Certified when
+        the computed lambda_min is positive and within 25 % of that prediction (rounding
+        noise, ~1e-16 of lambda_max, cannot match a prediction 1e-12 of it: on the N = 3
+        neck 1e-9 in s past, lambda_min / lambda_max = 9.4e-12 matched it to 2e-4) and
+        every other eigenvalue passes the margin test (one soft mode only)."""
+        predicted = fraction * far[0]
+        return self.soft_minimum(eigenvalues) and abs(eigenvalues[0] - predicted) <= 0.25 * predicted
 
     def landing_at_event(self, landing, s_land, s_star):
         """The landing's stable equilibrium at the event's own s: (state, s).
 
-        The mechanism lands with the parameters frozen a little past s*, so the
-        landed minimum is followed back to s* (Newton; the landing branch is regular
-        there), so that a reported jump goes from and to equilibria at one parameter
-        value.  Tracking goes on from the frozen landing.  If the minimum does not
-        persist back to s* the frozen landing is reported with its own s."""
+        The mechanism lands with the parameters frozen a little past s* (up to 1e-3
+        in s), so the landed minimum is followed back to s*, so that a reported jump
+        goes from and to equilibria at one parameter value: by one Newton step where
+        the landing hardly moves, else by tracking it back (a soft landing valley, e.g.
+        a neck of k = 10 N/m, moves its minimum by up to 0.8 rad over that offset).
+        Tracking goes on from the frozen landing.  Only where the landing minimum does
+        not persist back to s* (it is born past s*, or it buckles or times out on the
+        way back) is it reported at its own s_land, and the jump says so
+        (``Event.landing_s != Event.s``)."""
         back = self.newton(landing, s_star)
         if (back is not None and self.separation(back, landing) < self.settings.max_state_step
                 and self.definite(self.eigenvalues(back, s_star))):
             return back, s_star
-        return landing, s_land
+        followed = _Tracker(_Segment(self.problem, s_land, s_star), self.settings).run(landing)
+        if followed.status != 'ok' or followed.events or followed.passages:
+            return landing, s_land
+        polished = self.newton(followed.state, s_star)     # the segment ends at s* to rounding
+        if (polished is not None
+                and self.separation(polished, followed.state) <= self.settings.same_state_tol
+                and self.definite(self.eigenvalues(polished, s_star))):
+            return polished, s_star
+        return followed.state, s_star
 
     def continuous(self, kind, s_star, y_star, s_land, landing):
         """Whether the landing is the tracked minimum going on rather than a jump.
@@ -1016,13 +1109,15 @@ class _Segment:
         return self.problem.project(y, self.at(t))
 
 
-def track(problem: PathProblem, y0, settings: TrackerSettings = TrackerSettings()) -> Track:
+def track(problem: PathProblem, y0, settings: TrackerSettings = TrackerSettings(),
+          certificate='') -> Track:
     """Follow the stable equilibrium at ``y0`` (s = 0) to s = 1, jumping where it must.
 
     Raises :class:`TrackingError` if ``y0`` is not (close to) a stable
     equilibrium at s = 0; every other outcome is reported in the result.
+    ``certificate``: the :attr:`Track.certificate` ``y0`` was verified with, if any.
     """
-    return _Tracker(problem, settings).run(np.array(y0, dtype=float))
+    return _Tracker(problem, settings).run(np.array(y0, dtype=float), certificate=certificate)
 
 
 def settle(problem: PathProblem, y0, s=0.0, settings: TrackerSettings = TrackerSettings()):

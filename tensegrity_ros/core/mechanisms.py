@@ -25,7 +25,8 @@ from .tracking import settle, track_module
 class Motion:
     """What one tracked path did: the verified ``final`` state, the module parameters
     ``end`` it holds for (the commanded end unless ``status`` is ``failed``), the jumps,
-    and ``passages``: every module's parameters at each branch point passed continuously."""
+    and ``passages``: every module's parameters at each branch point passed continuously.
+    ``certificate``: the tracker's (:attr:`.continuation.Track.certificate`) for ``final``."""
 
     final: object
     end: tuple
@@ -33,6 +34,7 @@ class Motion:
     status: str
     message: str
     passages: tuple = ()
+    certificate: str = ''
 
 
 class ModuleView:
@@ -91,7 +93,8 @@ class OneModule:
         jumps = [(j.kind, j.s, (j.params,), np.array([j.from_theta]), np.array([j.to_theta]),
                   j.ambiguous) for j in track.jumps]
         passages = tuple((params,) for params in track.passages)
-        return Motion(track.final, (track.end,), jumps, track.status, track.message, passages)
+        return Motion(track.final, (track.end,), jumps, track.status, track.message, passages,
+                      track.certificate)
 
     def views(self, modules, state):
         return (state,)
@@ -161,7 +164,7 @@ class Neck:
                  for j in track.jumps]
         passages = tuple(p.stack.modules for p in track.passages)
         return Motion(track.final, track.end.modules, jumps, track.status, track.message,
-                      passages)
+                      passages, track.final.certificate)
 
     def ahead(self, modules, state, index, rho):
         """Where the live branch ends if module ``index``'s actuator goes on to ``rho``

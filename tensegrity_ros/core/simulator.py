@@ -629,7 +629,8 @@ class Simulator:
         except SOLVER_ERRORS as exc:
             return self._failed(trigger, f'{cause}: {exc}')
         eigenvalues = motion.final.eigenvalues
-        if not eigenvalues[0] > DEFINITENESS_TOL * abs(eigenvalues[-1]):
+        if not (eigenvalues[0] > DEFINITENESS_TOL * abs(eigenvalues[-1])
+                or (motion.certificate and eigenvalues[0] > 0.0)):   # see Track.certificate
             return self._failed(trigger, f'{cause}: tracker returned an unstable state')
         self._set_state(motion.end, motion.final)
         # passages first (a module's passage carries no s to order it by), then the jumps

@@ -881,6 +881,10 @@ class StackEquilibrium:
     ``head_position`` (2,) and ``head_angle`` the midpoint and direction of the top chord.
     The angles, forces, nodes and head are made on first use, from ``evaluation``: a
     node tracks a state per command (1 kHz) but reads them only at publish_rate.
+    ``certificate`` is the tracker's (:attr:`.continuation.Track.certificate`): non-empty
+    where the state is so close past a passed branch point that its positive
+    definiteness was shown by the branch point's normal form, not by the margin test
+    (``stable`` accepts either).
     """
 
     eigenvalues: np.ndarray
@@ -892,6 +896,7 @@ class StackEquilibrium:
     parameters: bytes = field(default=None, repr=False, compare=False)
     #: (path, point): the path's evaluation at ``state``, that the lazy values come from.
     evaluation: tuple = field(default=None, repr=False, compare=False)
+    certificate: str = ''
 
     @functools.cached_property
     def theta(self):
@@ -921,20 +926,22 @@ class StackEquilibrium:
     @property
     def stable(self):
         ev = self.eigenvalues
-        return bool(ev[0] > DEFINITENESS_TOL * max(abs(ev[-1]), 1e-300))
+        return bool(ev[0] > DEFINITENESS_TOL * max(abs(ev[-1]), 1e-300)
+                    or (self.certificate and ev[0] > 0.0))
 
     @property
     def stability_margin(self):
         return float(self.eigenvalues[0])
 
 
-def _record(path, y, s, eigenvalues=None, energy=None, residual=None):
+def _record(path, y, s, eigenvalues=None, energy=None, residual=None, certificate=''):
     p = path.point(y, s)
     return StackEquilibrium(
         eigenvalues=path.eigenvalues_at(p) if eigenvalues is None else eigenvalues,
         energy=path.energy_at(p) if energy is None else energy,
         residual=float(np.max(np.abs(path.residual_at(p)))) if residual is None else residual,
-        state=np.array(y), parameters=path.parameter_bytes(s), evaluation=(path, p))
+        state=np.array(y), parameters=path.parameter_bytes(s), evaluation=(path, p),
+        certificate=certificate)
 
 
 def _end_record(path, y, eigenvalues, energy, residual, point):
@@ -952,7 +959,12 @@ def stack_equilibrium_at(stack: Stack, state) -> StackEquilibrium:
 
 @dataclass(frozen=True)
 class StackJump:
-    """A jump of the stack: ``theta`` of every module before (critical) and after (landing)."""
+    """A jump of the stack: ``theta`` of every module before (critical) and after (landing).
+
+    ``to_theta`` is a stable equilibrium of ``stack`` (the parameters at the jump's s),
+    except where the landing minimum does not exist there (it appears only past s): then
+    ``landing_stack`` (otherwise ``stack``) holds the parameters it is an equilibrium of,
+    and ``landed_past`` is true."""
 
     kind: str
     s: float
@@ -960,6 +972,11 @@ class StackJump:
     from_theta: np.ndarray
     to_theta: np.ndarray
     ambiguous: bool = False
+    landing_stack: Stack | None = None
+
+    @property
+    def landed_past(self):
+        return self.landing_stack is not None and self.landing_stack != self.stack
 
 
 @dataclass(frozen=True)
@@ -1024,18 +1041,19 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
         keep_final_point(final, path, quick[4])
         return StackTrack(final=final, end=end, jumps=(), steps=1)
     try:
-        result = _continuation.track(path, y0, settings)
+        result = _continuation.track(path, y0, settings, known.certificate if known else '')
     except _continuation.TrackingError:
         y0 = _continuation.settle(path, path.project(y0, 0.0), 0.0, settings)
         result = _continuation.track(path, y0, settings)
     jumps = tuple(StackJump(kind=e.kind, s=e.s, stack=path.params(e.s),
                             from_theta=path.angles(e.state, e.s),
-                            to_theta=path.angles(e.landing, e.landing_s), ambiguous=e.ambiguous)
+                            to_theta=path.angles(e.landing, e.landing_s), ambiguous=e.ambiguous,
+                            landing_stack=path.params(e.landing_s))
                   for e in result.events)
     passages = tuple(StackPassage(s=s, stack=path.params(s), theta=path.angles(y, s))
                      for s, y in result.passages)
     reached = end if result.s == 1.0 else path.params(result.s)
-    final = _record(path, result.state, result.s)
+    final = _record(path, result.state, result.s, certificate=result.certificate)
     return StackTrack(final=final, end=reached, jumps=jumps, status=result.status,
                       message=result.message, steps=result.steps, passages=passages)
 

@@ -26,6 +26,9 @@ class ModuleJump:
     ``params.rho`` is the critical actuator length; ``from_theta`` the critical
     configuration, ``to_theta`` the stable equilibrium the mechanism lands on.
     ``ambiguous`` is set when the two sides of a branch point land differently.
+    ``to_theta`` is an equilibrium of ``params`` except where the landing minimum does
+    not exist there (it appears only past the jump): then ``landing_params`` (otherwise
+    ``params``) holds the parameters it is an equilibrium of, and ``landed_past`` is true.
     """
 
     kind: str
@@ -34,6 +37,11 @@ class ModuleJump:
     from_theta: np.ndarray
     to_theta: np.ndarray
     ambiguous: bool = False
+    landing_params: ModuleParams | None = None
+
+    @property
+    def landed_past(self):
+        return self.landing_params is not None and self.landing_params != self.params
 
 
 @dataclass(frozen=True)
@@ -44,7 +52,10 @@ class ModuleTrack:
     (``end`` is where tracking stopped; ``final`` is still a verified stable
     equilibrium there).  ``final`` is never an unverified state.  ``passages``:
     the parameters of each supercritical branch point passed continuously (the
-    module buckled smoothly onto a new minimum: not a jump).
+    module buckled smoothly onto a new minimum: not a jump).  ``certificate``: as
+    :attr:`.continuation.Track.certificate` (non-empty where ``final`` is so close past
+    such a branch point that it is shown a minimum by the normal form; its
+    classification, whose tolerance is coarser, may then read 'degenerate').
     """
 
     final: Equilibrium
@@ -54,6 +65,7 @@ class ModuleTrack:
     message: str = ''
     steps: int = 0
     passages: tuple = ()
+    certificate: str = ''
 
 
 class ModulePath:
@@ -227,24 +239,27 @@ def _checked_theta(theta):
 
 
 def track_module(start: ModuleParams, end: ModuleParams, theta,
-                 settings: TrackerSettings = TrackerSettings()) -> ModuleTrack:
+                 settings: TrackerSettings = TrackerSettings(), certificate='') -> ModuleTrack:
     """Follow the stable equilibrium at ``theta`` from ``start`` to ``end``.
 
     If ``theta`` is not a stable equilibrium at ``start`` the mechanism first
     settles (see :func:`settle`).  Every jump on the way is in ``jumps``.
+    ``certificate``: the previous command's :attr:`ModuleTrack.certificate` where
+    ``theta`` is its final state.
     """
     theta = _checked_theta(theta)
     path = ModulePath(start, end)
     try:
-        result = _continuation.track(path, theta, settings)
+        result = _continuation.track(path, theta, settings, certificate)
     except _continuation.TrackingError:
         theta = _continuation.settle(path, theta)
         result = _continuation.track(path, theta, settings)
     jumps = tuple(ModuleJump(kind=e.kind, s=e.s, params=path.params(e.s),
                              from_theta=_wrap(e.state), to_theta=_wrap(e.landing),
-                             ambiguous=e.ambiguous)
+                             ambiguous=e.ambiguous, landing_params=path.params(e.landing_s))
                   for e in result.events)
     reached = end if result.s == 1.0 else path.params(result.s)
     return ModuleTrack(final=equilibrium_at(reached, result.state), end=reached, jumps=jumps,
                        status=result.status, message=result.message, steps=result.steps,
-                       passages=tuple(path.params(s) for s, _ in result.passages))
+                       passages=tuple(path.params(s) for s, _ in result.passages),
+                       certificate=result.certificate)

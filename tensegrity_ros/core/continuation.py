@@ -243,6 +243,9 @@ class _Tracker:
         self.base_scale = None    # the stability scale at the start
         self.passages = []        # (s, state) of the branch points passed continuously
         self.certificate = ''     # how the final state's definiteness was shown (Track)
+        #: Stop (failed) at a critical point instead of landing: a landing's own
+        #: minimum followed back to its event (nested landings there could recurse).
+        self.stop_at_events = False
         self.deadline = (None if settings.time_budget is None
                          else time.perf_counter() + settings.time_budget)
         weights = getattr(problem, 'state_weights', None)
@@ -384,6 +387,10 @@ class _Tracker:
                 if arc is not None:
                     found = arc[1]
             moved = None
+            if found is not None and found[1] <= s_end and self.stop_at_events:
+                return self.result(y, s, eigenvalues, events, 'failed',
+                                   f'a critical point at s={found[1]!r} (not landed: '
+                                   f'stop_at_events)')
             if found is not None and found[1] <= s_end:
                 # at a linkage limit the flow of land() stalls: cross it first
                 moved = self.through_linkage_limit(found[2], found[1], s_end)
@@ -845,7 +852,9 @@ class _Tracker:
         if (back is not None and self.separation(back, landing) < self.settings.max_state_step
                 and self.definite(self.eigenvalues(back, s_star))):
             return back, s_star
-        followed = _Tracker(_Segment(self.problem, s_land, s_star), self.settings).run(landing)
+        follower = _Tracker(_Segment(self.problem, s_land, s_star), self.settings)
+        follower.stop_at_events = True      # a critical point on the way: not that minimum
+        followed = follower.run(landing)
         if followed.status != 'ok' or followed.events or followed.passages:
             return landing, s_land
         polished = self.newton(followed.state, s_star)     # the segment ends at s* to rounding

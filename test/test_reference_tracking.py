@@ -42,9 +42,15 @@ Not run by default, and why: the other 33 N = 2 / N = 3 nearly symmetric paths
 (FULL_NECKS=1 runs all 48).  Run by hand and passing: N = 2 head load ka 1e-9.  N = 3
 chord ramps (ka 1e-4, fx 1e-9) had not finished after 5-9 min under load: not yet
 diagnosed; the other N = 2 head-load and N = 3 paths were not run; N = 5 necks (slower
-still); perfect (exactly symmetric) necks with a perturbed reference (issue 10 (b3),
-waiting for j10buckle's continuous supercritical buckling); more random N = 2 / 3 necks
-(each costs as much as a nearly symmetric one).
+still); the perfect N = 3 chord ramp (the reference crashes in a change point: diagnosed
+in session 6, fix not landed, see the issue note); more random N = 2 / 3 necks (each
+costs as much as a nearly symmetric one).
+Perfect (exactly symmetric) modules and necks, run by default: the reference tells a
+supercritical branch point passed continuously (a ReferencePassage: its landing closes
+in like sqrt(s - s*)) from a jump, and the side of a perfect pitchfork is a convention
+(the reference's other side is tried): the unloaded module through rho = L (2 paths),
+N = 2 head load and chord ramp, N = 3 head load (passage 0.1713456172 vs the tracker's
+0.1713456168, fold 0.2921059140 both).
 The N = 3 nearly symmetric neck (m0 ka = 100.0000001, head load 0 -> -40 N): its
 reference ran > 540 s in one flow (module 0 stuck at its flat change point: equal rods
 and chords make it a parallelogram linkage, the chord constraint's gradient vanishes

@@ -25,7 +25,8 @@ from .events import Outcome
 from .mechanisms import head_of, stack_module_nodes
 from .moving_module import MovingModule
 from .moving_neck import MovingNeck
-from .simulator import DEFINITENESS_TOL, SOLVER_ERRORS, Simulator
+from .simulator import SOLVER_ERRORS, Simulator
+from .tolerances import DEFINITENESS_TOL
 from .stack import Stack
 from .transient import SAME_LANDING, wrap
 

@@ -171,8 +171,8 @@ class Neck:
         with the others held (a :class:`BranchEnd`), or None: the path tracked in
         advance, a dry run that changes nothing here (the last end is not replaced).
         None too where tracking stops before a jump (the real path will say why)."""
-        start = self._stack(modules) if self._last is not None and \
-            self._last[0] == modules else Stack(modules)
+        last = self._last
+        start = last[1] if last is not None and last[0] == modules else Stack(modules)
         track = track_stack(start, start.with_module(index, rho=rho), state)
         if not track.jumps:
             return None

@@ -39,11 +39,10 @@ from .events import Deferred, JumpAhead, Outcome, Passage, TrackingFailure
 from .mechanisms import make_jump, mechanism_for
 from .module import InvalidParameterError, ModuleParams
 from .supported_range import check_supported
+from .tolerances import verified_minimum
 from .start_state import start_state
 from .tracking import ModuleJump
 
-#: A published state must have lambda_min > this * |lambda_max| (a verified minimum).
-DEFINITENESS_TOL = 1e-9
 #: What a failing solver may raise on a bad path (anything else is a bug and propagates).
 SOLVER_ERRORS = (TrackingError, ValueError, ArithmeticError, np.linalg.LinAlgError)
 #: Seconds one call may spend tracking before it returns (the rest goes on in later
@@ -629,8 +628,7 @@ class Simulator:
         except SOLVER_ERRORS as exc:
             return self._failed(trigger, f'{cause}: {exc}')
         eigenvalues = motion.final.eigenvalues
-        if not (eigenvalues[0] > DEFINITENESS_TOL * abs(eigenvalues[-1])
-                or (motion.certificate and eigenvalues[0] > 0.0)):   # see Track.certificate
+        if not verified_minimum(eigenvalues, motion.certificate):
             return self._failed(trigger, f'{cause}: tracker returned an unstable state')
         self._set_state(motion.end, motion.final)
         # passages first (a module's passage carries no s to order it by), then the jumps

@@ -40,7 +40,7 @@ from . import continuation as _continuation
 from .continuation import TrackerSettings
 from .module import ModuleParams, PARAMETER_NAMES, InvalidParameterError
 from .stack_fast_step import keep_final_point, whole_command_step
-from .tolerances import DEFINITENESS_TOL
+from .tolerances import verified_minimum
 
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
 _PARAMETERS_OF = operator.attrgetter(*PARAMETER_NAMES)     # a module's parameters, in order
@@ -926,8 +926,7 @@ class StackEquilibrium:
     @property
     def stable(self):
         ev = self.eigenvalues
-        return bool(ev[0] > DEFINITENESS_TOL * max(abs(ev[-1]), 1e-300)
-                    or (self.certificate and ev[0] > 0.0))
+        return verified_minimum(ev, self.certificate)
 
     @property
     def stability_margin(self):

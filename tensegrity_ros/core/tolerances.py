@@ -29,3 +29,12 @@ DEFINITENESS_TOL = 1e-9
 #: An eigenvalue with |lambda| <= DEGENERACY_TOL * max|lambda| counts as zero in the
 #: classification of solver roots.
 DEGENERACY_TOL = 1e-8
+
+
+def verified_minimum(eigenvalues, certificate=''):
+    """Whether ``eigenvalues`` (ascending) make a verified minimum: lambda_min above
+    DEFINITENESS_TOL of |lambda_max|, or positive where the tracker certified the state
+    by a branch point's normal form (a non-empty ``certificate``, see above)."""
+    low = eigenvalues[0]
+    return bool(low > DEFINITENESS_TOL * max(abs(eigenvalues[-1]), 1e-300)
+                or (certificate and low > 0.0))

@@ -19,6 +19,7 @@ import os
 import re
 import signal
 import sys
+import time
 import traceback
 
 if __name__ == '__main__' or os.path.basename(sys.argv[0]) == 'tensegrity_node':
@@ -53,7 +54,7 @@ from tensegrity_ros import ros_conversions as conv
 from tensegrity_ros.joint_state_names import NamesAndPositions, exact_names
 from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.params_file import ConfigError, check_parameter_file
-from tensegrity_ros.core.command_coalescing import LatestCommands, force_key, target_key
+from tensegrity_ros.core.command_coalescing import CommandBacklog, force_key, target_key
 from tensegrity_ros.core.events import Deferred, Jump, JumpAhead, Passage, TrackingFailure
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.simulator import Simulator
@@ -65,7 +66,7 @@ from tensegrity_ros.core.stack import Stack
 #: Commands: reliable + volatile, so ``ros2 topic pub`` (and any default publisher)
 #: matches.  Depth 1000 = 0.2 s of a 5 kHz stream, the longest a command crossing a fold
 #: keeps the node busy on a loaded machine; each callback then reads everything waiting
-#: (coalescing superseded targets), so the queue does not overflow.
+#: (coalescing superseded targets beyond its time budget), so the queue does not overflow.
 COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
@@ -488,21 +489,24 @@ class TensegrityNode(Node):
     # A command message is first *read* (checked: bad input is rejected and counted), then
     # *applied* (tracked).  Every callback reads all the commands waiting in its
     # subscription's queue at once, so that a slow command (a fold) never lets the queue
-    # overflow; of those, only the latest target of a module is applied, the others are
-    # coalesced and counted (core.command_coalescing).
+    # overflow; they are applied one by one in arrival order (each answered on
+    # joint_states) while the callback is within its time budget, and beyond it only the
+    # latest target of a module, the others coalesced and counted
+    # (core.command_coalescing).
 
     def _on_commands(self, subscription, read, first):
         """Callback of a command subscription: ``first`` and every message waiting behind
-        it are read with ``read`` (-> (key, apply) or None if rejected); the latest of
-        each key is applied."""
-        waiting = LatestCommands()
+        it are read with ``read`` (-> (key, apply) or None if rejected), then applied in
+        arrival order within the backlog's time budget, beyond it the latest of each key."""
+        backlog = CommandBacklog(time.monotonic_ns)
         for msg in self._waiting_messages(subscription, first):
             command = read(msg)
             if command is not None:
-                waiting.offer(*command)
-        self._counters['commands_coalesced'] += waiting.coalesced
-        for apply in waiting.take():
-            apply()
+                backlog.offer(*command)
+        try:
+            backlog.work_off()
+        finally:
+            self._counters['commands_coalesced'] += backlog.coalesced
 
     @staticmethod
     def _waiting_messages(subscription, first):

@@ -15,8 +15,9 @@ Three processes on loopback DDS (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, on
 
 The command stream is a slow sine on the upper branch (rho 0.7..0.9, no jump), every
 value distinct.  A command unanswered = no joint_states reporting its value within the
-grace period; the node may coalesce commands that wait behind a slow one (only the
-latest target of a module matters, msg_docs/diagnostics.md), so its loss is what its
+grace period; the node may coalesce commands that wait behind a slow one (beyond a
+callback's 10 ms budget only the latest target of a module matters,
+msg_docs/diagnostics.md), so its loss is what its
 /diagnostics counters do not account for: sent - processed - coalesced - rejected
 ("untraced").  Bounded: ``--seconds`` per rate (default 5) and a hard overall time limit.
 
@@ -573,7 +574,8 @@ def neck_main(argv=None):
     What is counted, per run (the node's counters from its /diagnostics, 10 Hz here):
     ``unanswered`` = commands no joint_states reported (by value of m0_rho); of those, the
     node's ``coalesced`` ones were acted on through a later command that waited with them
-    (the node fell behind and tracked only the latest target), and ``untraced`` = sent -
+    (the node fell more than its 10 ms budget behind and tracked only the latest
+    target), and ``untraced`` = sent -
     processed - coalesced - rejected were lost without a trace (0 unless the transport
     dropped them); ``late`` answers came more than LATE_US after their command: the relay
     never coalesces, so when it falls behind it shows here (and in p99), not as unanswered.  Target: every command answered (nothing coalesced or lost: the node

@@ -697,7 +697,13 @@ class TensegrityNode(Node):
     # -- publishing -----------------------------------------------------------------------
 
     def _now_ns(self):
-        return self._node_clock.now().nanoseconds
+        """The node clock's time (ROS time: simulated under use_sim_time), in ns.
+
+        Read from the clock's handle, as ``Clock.now`` does, without building the
+        ``Time`` that ``now()`` wraps it in: ~1.6 instead of ~5.3 us, once per command."""
+        clock = self._node_clock.handle
+        with clock:
+            return clock.get_now().nanoseconds
 
     def _publish_everything(self):
         """The whole state at once (start-up, reset)."""

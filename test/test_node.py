@@ -340,6 +340,23 @@ def _core_jumps(rho0, theta0, rho1, **forces):
     return track_module(p0, p0.with_(rho=rho1), settle(p0, theta0).theta).jumps
 
 
+def test_command_answers_are_stamped_with_ros_time_under_use_sim_time(harness):
+    """With use_sim_time the node's clock is /clock's: a command's joint_states carries
+    the simulated time that was current when it was tracked (not the wall clock)."""
+    from builtin_interfaces.msg import Time
+    from rosgraph_msgs.msg import Clock
+    h = harness({'use_sim_time': True})     # not ready(): no ticks while /clock stands still
+    clock_pub = h.client.create_publisher(Clock, '/clock', STREAM_QOS)
+    h.spin_until(lambda: h.rho_pub.get_subscription_count() > 0, what='discovery')
+    sim_ns = 1234 * 10**9 + 5678
+    # /clock is shared by the domain: keep publishing until the node's clock shows it
+    h.spin_until(lambda: clock_pub.publish(Clock(clock=Time(sec=1234, nanosec=5678))) or
+                 h.node.get_clock().now().nanoseconds == sim_ns, what='the simulated time')
+    h.command_rho(0.8)
+    answer = next(m for m in h.joint_states if m.position[0] == 0.8)
+    assert (answer.header.stamp.sec, answer.header.stamp.nanosec) == (1234, 5678)
+
+
 def test_fig8a_branch_point_then_hysteresis(harness):
     h = harness(fig8a_overrides()).ready()
     _, t1, t2, _ = h.state()

@@ -54,7 +54,8 @@ from tensegrity_ros import ros_conversions as conv
 from tensegrity_ros.joint_state_names import NamesAndPositions, exact_names
 from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.params_file import ConfigError, check_parameter_file
-from tensegrity_ros.core.command_coalescing import CommandBacklog, force_key, target_key
+from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog,
+                                                      force_key, target_key)
 from tensegrity_ros.core.events import Deferred, Jump, JumpAhead, Passage, TrackingFailure
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.simulator import Simulator
@@ -498,7 +499,7 @@ class TensegrityNode(Node):
         """Callback of a command subscription: ``first`` and every message waiting behind
         it are read with ``read`` (-> (key, apply) or None if rejected), then applied in
         arrival order within the backlog's time budget, beyond it the latest of each key."""
-        backlog = CommandBacklog(time.monotonic_ns)
+        backlog = CommandBacklog(time.monotonic_ns, BACKLOG_BUDGET_NS)
         for msg in self._waiting_messages(subscription, first):
             command = read(msg)
             if command is not None:

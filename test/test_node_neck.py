@@ -15,6 +15,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
+from tensegrity_ros import node as node_module
 from tensegrity_ros.core.stack import settle_stack, track_stack
 from test_node import harness, ros  # noqa: F401  (fixtures)
 from test_node import LATCHED_QOS, PUB_QOS, ROOT, STREAM_QOS, values
@@ -321,26 +322,63 @@ def test_joint_commands_the_node_keeps_up_with_are_answered_one_to_one(neck):
     assert after['commands_coalesced'] == before['commands_coalesced']
 
 
-def test_a_burst_of_joint_commands_behind_one_callback_is_answered_command_by_command(neck):
-    """Ten three-module joint_commands published at once, before the node spins again, so
-    they all wait in its queue for one callback (a short backlog, ~3 ms of tracking: inside
-    the backlog's time budget): each is tracked and answered by a joint_states carrying
-    exactly its rhos, in the order sent; none is coalesced."""
-    n = neck()
+def _send_burst(n, burst, names):
+    """Publish every command of ``burst`` at once, before the node spins again: they all
+    wait in its joint_commands queue for one callback.  Returns the joint_states seen
+    before, to find the answers after."""
     h = n.h
     pub = h.client.create_publisher(JointState, 'joint_commands', STREAM_QOS)
     h.spin_until(lambda: pub.get_subscription_count() > 0, what='burst publisher matched')
-    before = h.node.counters
-    burst = [[rho + 1e-3 * math.sin(0.7 * i + j) + 1e-13 * i
-              for j, rho in enumerate((0.09, 0.085, 0.08))] for i in range(10)]
     sent = len(h.joint_states)
-    for rhos in burst:
-        pub.publish(JointState(name=[f'{m}_rho' for m in MODULES], position=rhos))
-    h.spin_until(lambda: any(m.position[0] == burst[-1][0] for m in h.joint_states[sent:]),
+    for rhos, joints in zip(burst, names):
+        pub.publish(JointState(name=joints, position=rhos))
+    return sent
+
+
+BURST = [[rho + 1e-3 * math.sin(0.7 * i + j) + 1e-13 * i
+          for j, rho in enumerate((0.09, 0.085, 0.08))] for i in range(10)]
+ALL_RHOS = [f'{m}_rho' for m in MODULES]
+
+
+def test_a_burst_of_joint_commands_behind_one_callback_is_answered_command_by_command(
+        neck, monkeypatch):
+    """Ten three-module joint_commands waiting behind one callback, within the backlog's
+    time budget (made a minute here, so that a loaded machine cannot spend it): each is
+    tracked and answered by a joint_states carrying exactly its rhos, in the order sent;
+    none is coalesced.  (10 small neck commands take ~3 ms, under the real 10 ms.)"""
+    monkeypatch.setattr(node_module, 'BACKLOG_BUDGET_NS', 60 * 10**9)
+    n = neck()
+    h = n.h
+    before = h.node.counters
+    sent = _send_burst(n, BURST, [ALL_RHOS] * len(BURST))
+    h.spin_until(lambda: any(m.position[0] == BURST[-1][0] for m in h.joint_states[sent:]),
                  what='the answer to the last command of the burst')
     answered = [list(m.position[0::3]) for m in h.joint_states[sent:]]
-    answers = [rhos for rhos in answered if rhos in burst]
-    assert answers == burst
+    assert [rhos for rhos in answered if rhos in BURST] == BURST
     after = h.node.counters
-    assert after['commands_processed'] - before['commands_processed'] == len(burst)
+    assert after['commands_processed'] - before['commands_processed'] == len(BURST)
     assert after['commands_coalesced'] == before['commands_coalesced']
+
+
+def test_a_burst_beyond_the_budget_keeps_the_latest_target_of_each_key(neck, monkeypatch):
+    """The same burst with the budget spent from the start (0): only the latest command
+    of each key is tracked -- here the last one naming all three modules and the last one
+    naming m0 alone, in the order of their arrival -- and the others are counted as
+    coalesced: processed + coalesced = sent."""
+    monkeypatch.setattr(node_module, 'BACKLOG_BUDGET_NS', 0)
+    n = neck()
+    h = n.h
+    names = [['m0_rho'] if i in (3, 7) else ALL_RHOS for i in range(len(BURST))]
+    burst = [rhos[:1] if joints == ['m0_rho'] else rhos for rhos, joints in zip(BURST, names)]
+    before = h.node.counters
+    sent = _send_burst(n, burst, names)
+    h.spin_until(lambda: any(m.position[0] == burst[-1][0] for m in h.joint_states[sent:]),
+                 what='the answer to the last command of the burst')
+    m0_answers = [m.position[0] for m in h.joint_states[sent:]
+                  if m.position[0] in [rhos[0] for rhos in burst]]
+    assert m0_answers == [burst[7][0], burst[9][0]]
+    assert [m.position[0::3] for m in h.joint_states[sent:]
+            if m.position[0] == burst[9][0]][0].tolist() == burst[9]
+    after = h.node.counters
+    assert after['commands_processed'] - before['commands_processed'] == 2
+    assert after['commands_coalesced'] - before['commands_coalesced'] == len(burst) - 2

@@ -30,7 +30,9 @@ from collections import deque
 #: then answered at most ~one budget after it was read.  Beyond it (a fold taking ~15 ms,
 #: a flood) only the latest target per key is tracked, so a callback stays within the
 #: budget plus one command plus the survivors, far inside the 0.2 s the command queue
-#: holds at 5 kHz: the queue cannot overflow, the executor does not stall.
+#: holds at 5 kHz: the queue cannot overflow, the executor does not stall.  The price of
+#: a larger budget is latency: while the machine cannot give the node the CPU a stream
+#: needs, answers run up to ~1-2 budgets late instead of being coalesced.
 BACKLOG_BUDGET_NS = 10_000_000
 
 

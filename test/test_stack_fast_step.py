@@ -262,3 +262,25 @@ def test_approaching_a_fold_the_step_bound_decides_as_the_tracker_does(n, monkey
             taken += fast is not None
             declined += fast is None
     assert taken and declined and probes
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2 ** 16), n=st.integers(1, 4), g=st.sampled_from([0.0, 9.81]),
+       group=st.sampled_from(['rho', 'loads', 'springs', 'rods', 'all']))
+def test_the_groups_a_path_moves_are_those_whose_rates_are_not_zero(seed, n, g, group):
+    """The still groups the s-derivatives skip are read from which parameters changed (a
+    table per set of changed parameters); they are exactly the groups whose rates along
+    the path, end values less start values, are not all zero (seeded random paths, with
+    and without gravity: without it a mass moves no load)."""
+    rng = np.random.default_rng(seed)
+    start, end = moving_groups(rng, n, group)
+    if group == 'rho' and rng.random() < 0.5:           # a mass too: a load under gravity
+        i = int(rng.integers(n))
+        end = end.with_module(i, m2=end.modules[i].m2 + 0.05)
+    start = Stack(tuple(m.with_(g=g) for m in start.modules))
+    end = Stack(tuple(m.with_(g=g) for m in end.modules))
+    path = StackPath(start, end)
+    rates, layout = path._rate_values.data, path.topology.value_layout
+    expected = {name: bool(np.any(rates[layout[name]] != 0.0))
+                for name in ('rod', 'k', 'rod_loads', 'shift')}
+    assert path._moving == expected

@@ -53,6 +53,8 @@ _FRAME_SIGNS, _ANGLE_SIGNS = np.array([1.0, -1.0]), np.array([-1.0, 1.0])  # Sta
 _BASE_AXIS = np.ones(1, dtype=complex)      # module 0's x axis A1(0) -> A2(0), as a chord
 #: A chord constraint whose gradient is below this (times l_ref) is at a linkage limit.
 LINKAGE_LIMIT_TOL = 1e-4
+#: The value groups whose rates along a path the s-derivatives skip where they are still.
+_RATE_GROUPS = ('rod', 'k', 'rod_loads', 'shift')
 
 
 def _solve_guarded(matrix, rhs):
@@ -186,6 +188,7 @@ class _Topology:
                 weights[node, index(i, 'm2')] -= 0.5
         self.load_forces, self.load_weights = forces, 1j * weights
         self._load_maps, self._value_maps, self._scaled_tables = {}, {}, {}
+        self._groups_moved = {}
         sizes = (('rod_loads', 2 * self.n_rods), ('k', len(springs)), ('chord', self.n_chords),
                  ('rod', self.n_rods), ('shift', len(ends)), ('weights', len(ends)),
                  ('base_load', None), ('rho0', None))
@@ -225,6 +228,22 @@ class _Topology:
                     table.flags.writeable = False      # shared by every path of these scales
             self._scaled_tables[key] = found
         return found
+
+    def groups_moved(self, g, changed):
+        """{group: whether it moves} for the value groups of :data:`_RATE_GROUPS`, when the
+        parameters flagged in ``changed`` (a boolean vector, 12N) change under gravity g:
+        a group moves where the value map ties it to a changed parameter.  Kept per set of
+        changed parameters (a stream of actuator commands changes the same few), a copy
+        returned."""
+        key = (g, changed.tobytes())
+        found = self._groups_moved.get(key)
+        if found is None:
+            if len(self._groups_moved) > 64:
+                self._groups_moved.clear()
+            columns = self.value_map(g)[:, changed]
+            found = self._groups_moved[key] = {
+                name: bool(np.any(columns[self.value_layout[name]])) for name in _RATE_GROUPS}
+        return dict(found)
 
     def load_map(self, g):
         """Complex node forces per parameter (nodes x 12N) under gravity g."""
@@ -304,7 +323,7 @@ class _Values:
     @classmethod
     def of(cls, top, g, p):
         """The values of parameter vector ``p`` (N x 12, flattened)."""
-        return cls._of_data(top, top.value_map(g) @ p)
+        return cls._of_data(top, np.dot(top.value_map(g), p))
 
     @classmethod
     def of_stack(cls, stack, top):
@@ -360,24 +379,26 @@ class _Point:
     Hessian's diagonal term).  What only some callers need is made on first use."""
 
     __slots__ = ('key', 'values', 'rods', 'diff', 'force', 'moment', 'weights', '_y', '_n',
-                 '_f_ref', '_squares', '_pair', '_jc', '_gram', '_constraints', 'rates')
+                 '_f_ref', '_squares', '_pair', '_jc', '_gram', '_constraints', '_mu', 'rates')
 
     def __init__(self, path, y, key, values):
         top = path.topology
         self.key, self.values, self._y = key, values, y
         n = self._n = top.n_rods
         rods = self.rods = values.rod * np.exp(1j * y[:n])
-        diff = self.diff = top.element_rods_c @ rods
+        # (np.dot, not @, on these small operands: the same product, half the call overhead)
+        diff = self.diff = np.dot(top.element_rods_c, rods)
         diff += values.shift
         self._f_ref = path.f_ref
         # [stiffnesses, chord multipliers * f_ref / l_ref]: the multipliers enter through a
         # fixed map of the whole state (one product, no slicing and joining)
         weights = self.weights = (values.weights if path.weight_map is None
-                                  else values.weights + path.weight_map @ y)
-        force = self.force = top.element_rods_tc @ (weights * diff)
+                                  else values.weights + np.dot(path.weight_map, y))
+        force = self.force = np.dot(top.element_rods_tc, weights * diff)
         force -= values.rod_loads
         self.moment = rods.conj() * force
-        self._squares = self._pair = self._jc = self._gram = self._constraints = self.rates = None
+        self._squares = self._pair = self._jc = self._gram = self._constraints = None
+        self._mu = self.rates = None
 
     def gradient(self):
         """dL/dphi (2N,): the torque of the generalized force about every rod's base."""
@@ -385,8 +406,11 @@ class _Point:
 
     @property
     def mu(self):
-        """The chord multipliers (N - 1,), N: the chords' compression forces."""
-        return self._y[self._n:] * self._f_ref
+        """The chord multipliers (N - 1,), N: the chords' compression forces (kept: the
+        energy, its rate and the actuator forces all read them)."""
+        if self._mu is None:
+            self._mu = self._y[self._n:] * self._f_ref
+        return self._mu
 
     @property
     def squares(self):
@@ -410,7 +434,7 @@ class _Point:
         if self._pair is not None:
             return self._pair[0]
         n = path.topology.n_rods
-        hessian = (self.weights @ path.topology.element_outer).reshape(n, n)
+        hessian = np.dot(self.weights, path.topology.element_outer).reshape(n, n)
         hessian *= self.gram
         hessian.reshape(n * n)[::n + 1] -= self.moment.real
         return hessian
@@ -428,7 +452,7 @@ class _Point:
             top = path.topology
             n = top.n_rods
             pair = np.empty((2, n, n))
-            np.matmul(self.weights, top.element_outer, out=pair[0].reshape(n * n))
+            np.dot(self.weights, top.element_outer, out=pair[0].reshape(n * n))
             pair[1] = top.mobility
             pair *= self.gram
             pair.reshape(2 * n * n)[:n * n:n + 1] -= self.moment.real
@@ -485,11 +509,9 @@ class StackPath:
         (self.weight_map, self.chord_rods_scaled, self._jacobian_coefficients,
          self._outer_per_l_ref) = top.scaled_tables(self.l_ref, self.f_ref)
         self._zero_values = zero
-        rate = self._rate_values = _Values.difference(top, one, zero)
+        self._rate_values = _Values.difference(top, one, zero)
         # which parameter groups move along the path (a still group adds nothing to d/ds)
-        changes, layout = rate.data.tolist(), top.value_layout     # (Python: a few floats)
-        self._moving = {name: any(changes[layout[name]])
-                        for name in ('rod', 'k', 'rod_loads', 'shift')}
+        self._moving = top.groups_moved(self.g, self.dp != 0.0)
         if not (self._moving['rod'] or self._moving['k']):
             # the scales depend on rods and springs only: the end, the next command's
             # start, has these very ones (a stream of actuator commands computes them once)
@@ -589,7 +611,7 @@ class StackPath:
         n, size = self.topology.n_rods, self.size
         u = np.concatenate((p.rods, p.diff[self.topology.n_springs:]))
         table = self._jacobian_coefficients.copy()
-        table[:n, :n] = (p.weights @ self._outer_per_l_ref).reshape(n, n)
+        table[:n, :n] = np.dot(p.weights, self._outer_per_l_ref).reshape(n, n)
         table *= u.conj()[:, None]
         table *= u
         table.reshape(size * size)[:n * (size + 1):size + 1] -= p.moment.real * self.inv_l_ref
@@ -610,7 +632,7 @@ class StackPath:
                 return p.rates
             ratio = rate.rod / p.values.rod
             d_rods = p.rods * ratio
-            d_diff = self.topology.element_rods_c @ d_rods
+            d_diff = np.dot(self.topology.element_rods_c, d_rods)
             d_diff += rate.shift
             p.rates = ratio, d_rods, d_diff, (p.diff.conj() * d_diff).real
         return p.rates
@@ -635,7 +657,7 @@ class StackPath:
             if d_weighted is None:
                 d_force = -rate.rod_loads
             else:
-                d_force = top.element_rods_tc @ d_weighted
+                d_force = np.dot(top.element_rods_tc, d_weighted)
                 if moving['rod_loads']:
                     d_force -= rate.rod_loads
             # d Im(conj(v) f) with dv = ratio v: Im(conj(v) df) + ratio Im(conj(v) f)
@@ -656,11 +678,11 @@ class StackPath:
 
     def energy_at(self, p):
         v, ns = p.values, self.topology.n_springs
-        springs = 0.5 * float(v.k @ p.squares[:ns])
+        springs = 0.5 * float(np.dot(v.k, p.squares[:ns]))
         work = np.vdot(v.rod_loads, p.rods).real + v.base_load * v.rho0
         if not self.topology.n_chords:
             return springs - work
-        return springs - work + float(p.mu @ p.constraints(self))
+        return springs - work + float(np.dot(p.mu, p.constraints(self)))
 
     def energy_and_rate(self, y, s):
         """(energy, energy_s) at one point, sharing their terms."""
@@ -674,9 +696,9 @@ class StackPath:
         v, rate, ns = p.values, self._rate_values, self.topology.n_springs
         _, d_rods, _, cross = self._rates(p)
         moving = self._moving
-        springs = 0.0 if cross is None else float(p.weights @ cross)
+        springs = 0.0 if cross is None else float(np.dot(p.weights, cross))
         if moving['k']:
-            springs += 0.5 * float(rate.k @ p.squares[:ns])
+            springs += 0.5 * float(np.dot(rate.k, p.squares[:ns]))
         work = rate.base_load * v.rho0 + v.base_load * rate.rho0
         if moving['rod_loads']:
             work += np.vdot(rate.rod_loads, p.rods).real
@@ -684,7 +706,7 @@ class StackPath:
             work += np.vdot(v.rod_loads, d_rods).real
         if not self.topology.n_chords:
             return springs - work
-        return springs - work - float(p.mu @ (v.chord * rate.chord)) / self.l_ref
+        return springs - work - float(np.dot(p.mu, v.chord * rate.chord)) / self.l_ref
 
     def _reduced(self, y, s):
         """(reduced Hessian, reduced metric, null basis Z, point) on the tangent space."""
@@ -702,7 +724,12 @@ class StackPath:
 
     def eigenvalues_at(self, p):
         a, b, _, _ = self._reduced_at(p)
-        values, _, info = _dsygv(a, b, jobz='N')
+        if self.topology.n_chords:
+            # fresh C-ordered symmetric reductions: their transposes are Fortran-ordered
+            # views that LAPACK may overwrite, so it copies nothing (half the call)
+            values, _, info = _dsygv(a.T, b.T, 1, 'N', overwrite_a=1, overwrite_b=1)
+        else:                                   # the point's own matrices: not to be overwritten
+            values, _, info = _dsygv(a, b, 1, 'N')
         if info != 0:
             raise np.linalg.LinAlgError(f'reduced eigenproblem failed (dsygv info={info})')
         return values

@@ -6,21 +6,23 @@ points in the plane (4N coordinates; A1(0), A2(0) are fixed).  Every rigid lengt
 (both rods of every module, every chord |A3(i) - A4(i)| = rho(i + 1)) is a stiff
 linear spring of stiffness ``stiffness`` and rest length the rigid length; the
 module springs a, b, c have zero free length (DESIGN.md section 1); the loads are
-constant node forces in the base frame.  The overdamped motion is the gradient flow
-dx/dt = -grad E(x) with the same drag on every node coordinate, integrated with
-``scipy.integrate.solve_ivp`` (Radau, exact Hessian).  There are no angles and no
-constraint multipliers, so nothing degenerates where a module lies flat: the stiff
-springs carry the flow through a linkage's change point as a real, slightly
-compliant mechanism would.
+constant node forces in the base frame.  Two overdamped motions, integrated with
+``scipy.integrate.solve_ivp`` (LSODA): node drag (dx/dt = -grad E, the same drag on
+every node coordinate) and pivot damping (the local angles' gradient flow with the
+rods rigid and the chords stiff: viscous damping on every pivot, as in
+core/neck_dynamics.py).  There are no constraint multipliers and no projections, so
+nothing degenerates where a module lies flat: the stiff springs carry the flow
+through a linkage's change point as a real, slightly compliant mechanism would.
 
-Its rest points are then checked in the rigid model, in node coordinates too:
-Newton on the KKT system of all rigid lengths (a minimum of the energy on the rigid
-configurations), and the reduced Hessian of the Lagrangian on the tangent space of
-the rigid lengths (N/m, orthonormal node displacements) must be positive definite.
+Rest points are then checked in the rigid model, in node coordinates: Newton on the
+KKT system of all rigid lengths, and the reduced Hessian of the Lagrangian on the
+tangent space of the rigid lengths (N/m, orthonormal node displacements) must be
+positive definite.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -143,21 +145,43 @@ class NodeSpringNeck:
             add(a, b, self.stiffness * ((1.0 - length / r) * np.eye(2) + length / r * np.outer(u, u)))
         return h.reshape(2 * m, 2 * m)[4:, 4:]
 
-    # -- the overdamped flow --------------------------------------------------------
-    def flow(self, x0, t_end=2000.0, rest_speed=1e-9):
-        """The rest point of dx/dt = -grad E from x0 (stops once the speed is below
-        ``rest_speed`` m/s, or at t_end).  Returns (x, t, trajectory of angles)."""
-        def speed_event(t, x):
-            return np.linalg.norm(self.gradient(x)) - rest_speed
-        speed_event.terminal = True
-        sol = solve_ivp(lambda t, x: -self.gradient(x), (0.0, t_end), np.asarray(x0, dtype=float),
-                        method='Radau', jac=lambda t, x: -self.hessian(x),
-                        rtol=1e-9, atol=1e-11, events=speed_event, dense_output=False)
-        if sol.status < 0:
-            raise RuntimeError(sol.message)
-        return sol.y[:, -1], sol.t[-1], sol
+    # -- the overdamped flow: node drag or pivot damping ----------------------------------
+    # 'node': dx/dt = -dE/dx, the same drag on every node coordinate (the metric of the
+    # tracker's landing flow).  'pivot': d theta/dt = -dE/d theta in the local angles,
+    # rods rigid and chords stiff springs: the overdamped limit of viscous damping on
+    # every pivot's local angle rate (DESIGN.md section 9, core/neck_dynamics.py).
+    def coordinates(self, theta, damping):
+        """The flow's state for local angles theta: node coordinates or the angles."""
+        return self.nodes_from_angles(theta) if damping == 'node' else np.ravel(theta).astype(float)
 
-    # -- the same mechanism damped at its pivots ----------------------------------------
+    def to_nodes(self, y, damping):
+        return y if damping == 'node' else self.nodes_from_angles(y)
+
+    def flow_gradient(self, y, damping):
+        return self.gradient(y) if damping == 'node' else self.angle_gradient(y)
+
+    def flow_hessian(self, y, damping):
+        """dE/dy's Jacobian: exact for nodes, central differences of the complex-step
+        angle gradient for the pivots."""
+        if damping == 'node':
+            return self.hessian(y)
+        h = 1e-6
+        w = np.column_stack([(self.angle_gradient(y + h * e) - self.angle_gradient(y - h * e))
+                             / (2.0 * h) for e in np.eye(y.size)])
+        return 0.5 * (w + w.T)
+
+    def equilibrium(self, y, damping, iterations=50):
+        """Newton on dE/dy = 0 from y: (y*, Hessian eigenvalues, modes), in the flow's
+        coordinates (whose metric is the identity: the modes are the flow's)."""
+        scale = float(np.max(np.abs(self.loads))) + float(np.max(self.spring_k))
+        for _ in range(iterations):
+            g = self.flow_gradient(y, damping)
+            if np.max(np.abs(g)) < 1e-12 * scale:
+                break
+            y = y - np.linalg.solve(self.flow_hessian(y, damping), g)
+        values, modes = np.linalg.eigh(self.flow_hessian(y, damping))
+        return y, values, modes
+
     def angle_gradient(self, theta):
         """dE/d(local angles) with the rods rigid and the chords stiff springs: the
         complex-step Jacobian of the forward kinematics times the node gradient."""
@@ -166,20 +190,19 @@ class NodeSpringNeck:
         probes = self.nodes_from_angles(theta + 1j * h * np.eye(theta.size))
         return (probes.imag / h) @ self.gradient(probes[0].real)
 
-    def pivot_flow(self, theta0, t_end=1e5, rest_speed=1e-9):
-        """The rest point of d theta/dt = -dE/d theta in the local angles: the overdamped
-        limit of viscous damping on every pivot's local angle rate (DESIGN.md section 9;
-        core/neck_dynamics.py's dissipation), rods rigid, chords stiff springs.
-        Returns (theta, t, solution)."""
+    def flow(self, y0, damping, t_end=1e5, rest_speed=1e-9):
+        """Where dy/dt = -dE/dy from y0 comes to rest (the first time the speed falls
+        below ``rest_speed``, else at t_end): (y, t)."""
         def speed_event(t, y):
-            return np.linalg.norm(self.angle_gradient(y)) - rest_speed
+            return np.linalg.norm(self.flow_gradient(y, damping)) - rest_speed
         speed_event.terminal = True
-        sol = solve_ivp(lambda t, y: -self.angle_gradient(y), (0.0, t_end),
-                        np.asarray(theta0, dtype=float).ravel(), method='Radau',
+        jac = (lambda t, y: -self.hessian(y)) if damping == 'node' else None
+        sol = solve_ivp(lambda t, y: -self.flow_gradient(y, damping), (0.0, t_end),
+                        np.asarray(y0, dtype=float), method='LSODA', jac=jac,
                         rtol=1e-9, atol=1e-11, events=speed_event)
         if sol.status < 0:
             raise RuntimeError(sol.message)
-        return sol.y[:, -1], sol.t[-1], sol
+        return sol.y[:, -1], sol.t[-1]
 
     # -- the rigid model ------------------------------------------------------------
     def rigid_jacobian(self, x):
@@ -257,6 +280,33 @@ class NodeSpringNeck:
 
     def rigid_energy(self, x):
         return self.energy(x, stiff=False)
+
+
+@dataclass(frozen=True)
+class Landing:
+    """A rest point checked in the rigid model: local angles (N x 2), energy (J),
+    reduced-Hessian eigenvalues (N/m), KKT residual, and the softest eigenvalue of the
+    compliant state it was released from (negative: released past its critical point)."""
+
+    theta: np.ndarray
+    energy: float
+    eigenvalues: np.ndarray
+    residual: float
+    released_from: float
+
+
+def released_landing(past, at, theta_star, damping, push, sign):
+    """Where the mechanism released next to the critical state ``theta_star`` comes to rest.
+
+    ``past`` (a :class:`NodeSpringNeck`) holds the load frozen just past the event:
+    its equilibrium next to theta_star, pushed off by ``sign * push`` along its softest
+    mode, flows to rest under ``damping`` ('node' or 'pivot'); the rest point is polished
+    and checked in the rigid model ``at`` (the parameters at the event)."""
+    y, values, modes = past.equilibrium(past.coordinates(theta_star, damping), damping)
+    rest, _ = past.flow(y + sign * push * modes[:, 0], damping)
+    x, mu, residual = at.rigid_polish(past.to_nodes(rest, damping))
+    eigenvalues, _ = at.reduced_eigen(x, mu)
+    return Landing(at.angles(x), at.rigid_energy(x), eigenvalues, residual, float(values[0]))
 
 
 def _incidence(ends, nodes):

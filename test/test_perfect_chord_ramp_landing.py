@@ -41,6 +41,8 @@ FREEZE = 1e-3
 PUSH = 1e-2
 #: Landings polished at s* in the rigid model equal the tracker's to this (rad).
 LANDING_TOL = 1e-8
+#: Frozen loads of the node model's quasi-static path from the landing to s = 1.
+STEPS = 16
 
 
 def perfect_neck(rho):
@@ -54,13 +56,18 @@ def modules_at(s):
 
 
 @pytest.fixture(scope='module')
-def jump():
+def track():
     start, end = perfect_neck(RHO_START), perfect_neck(RHO_END)
     top = equilibria(ModuleParams.paper(RHO_START)).stable[-1].theta
     got = track_stack(start, end, settle_stack(start, np.tile(top, (N, 1))).theta)
     assert got.status == 'ok', got.message
     assert [j.kind for j in got.jumps] == ['branch_point']
-    return got.jumps[0]
+    return got
+
+
+@pytest.fixture(scope='module')
+def jump(track):
+    return track.jumps[0]
 
 
 def wrapped(a):
@@ -145,3 +152,18 @@ def test_the_lower_energy_minimum_is_not_where_it_lands(jump):
     landed = model.rigid_polish(model.nodes_from_angles(jump.to_theta))[0]
     assert model.rigid_energy(x) < model.rigid_energy(landed) - 10.0
     assert distance(model.angles(x), jump.to_theta) > 0.5
+
+
+def test_from_the_landing_on_the_path_ends_where_the_tracker_ends(track, jump):
+    """No further event: the node model's quasi-static path from the landing (node drag
+    at STEPS frozen loads up to s = 1, each resting next to the last) ends on the
+    tracker's final state, a strict minimum."""
+    theta = np.asarray(jump.to_theta)
+    for s in np.linspace(jump.s, 1.0, STEPS + 1)[1:]:
+        model = NodeSpringNeck(modules_at(s), STIFFNESS)
+        rest, _ = model.flow(model.nodes_from_angles(theta), 'node', t_end=1e4)
+        x, mu, residual = model.rigid_polish(rest)
+        assert residual < 1e-10 and model.reduced_eigen(x, mu)[0][0] > 1.0
+        assert distance(model.angles(x), theta) < 0.05          # continuous: no jump
+        theta = model.angles(x)
+    assert distance(theta, track.final.theta) <= LANDING_TOL, (theta, track.final.theta)

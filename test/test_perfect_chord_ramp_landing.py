@@ -9,7 +9,11 @@ test/reference_paths.py lands on a lower minimum (U = 262.43 J, every module a c
 trapezoid hanging down), which it picks at module 0's change point (flat: its
 parallelogram and anti-parallelogram branches cross) as the way out whose landing has
 the lowest energy.  An overdamped mechanism does not choose by the energy of where a
-way leads.
+way leads: the released flows below pass module 0's change point (0, pi) coming in on
+the anti-parallelogram branch and leave on the parallelogram one, the half-branch of
+steepest descent there (-dU per unit length 7.07 against 1.64 J/rad with pivot damping,
+4.08 against 0.48 in the node metric; both leave downhill, so the reference's test
+"the velocity points out" keeps both and its energy rule picks the wrong one).
 
 The check (test/node_spring_flow.py, sharing no code with either): the nodes are free
 points, the rods and chords stiff springs, so nothing degenerates at a change point.
@@ -18,8 +22,12 @@ state, the load frozen 1e-3 past s* (past the compliant mechanism's own branch p
 checked), pushed off along its softest mode either way, and flows to rest under node
 drag (the tracker's metric) or pivot damping (the product's dynamics and the
 reference's metric).  Every rest point, polished in the rigid model at s*, is the
-tracker's landing or its mirror image, a strict minimum.  Found with stiffnesses 1e5
-to 1e7 N/m, freezes 1e-4 and 1e-3 past, push-offs 1e-3 and 1e-2: always the same.
+tracker's landing or its mirror image (to 1e-14 rad), a strict minimum (reduced
+Hessian 1.2466, 5.0277, 23.04, 203.94 N/m).  Found by hand with stiffnesses 1e5 to 1e7
+N/m, freezes 1e-4 and 1e-3 past, push-offs 1e-3 and 1e-2: always the same.  The
+tracker's s* agrees with the node model's to 2e-12.  Nothing in the core was wrong
+here, so these tests pass on the old code too; each fails with the reference's landing
+or an s* 2e-9 off put in the tracker's place.
 """
 import math
 

@@ -285,28 +285,30 @@ class NodeSpringNeck:
 @dataclass(frozen=True)
 class Landing:
     """A rest point checked in the rigid model: local angles (N x 2), energy (J),
-    reduced-Hessian eigenvalues (N/m), KKT residual, and the softest eigenvalue of the
-    compliant state it was released from (negative: released past its critical point)."""
+    reduced-Hessian eigenvalues (N/m) and KKT residual."""
 
     theta: np.ndarray
     energy: float
     eigenvalues: np.ndarray
     residual: float
-    released_from: float
 
 
-def released_landing(past, at, theta_star, damping, push, sign):
-    """Where the mechanism released next to the critical state ``theta_star`` comes to rest.
-
-    ``past`` (a :class:`NodeSpringNeck`) holds the load frozen just past the event:
-    its equilibrium next to theta_star, pushed off by ``sign * push`` along its softest
-    mode, flows to rest under ``damping`` ('node' or 'pivot'); the rest point is polished
-    and checked in the rigid model ``at`` (the parameters at the event)."""
-    y, values, modes = past.equilibrium(past.coordinates(theta_star, damping), damping)
-    rest, _ = past.flow(y + sign * push * modes[:, 0], damping)
+def rest_point(past, at, y0, damping):
+    """Where the mechanism ``past`` (a :class:`NodeSpringNeck`, the load frozen) released
+    at y0 (its flow coordinates) comes to rest under ``damping`` ('node' or 'pivot'),
+    polished and checked in the rigid model ``at``."""
+    rest, _ = past.flow(y0, damping)
     x, mu, residual = at.rigid_polish(past.to_nodes(rest, damping))
     eigenvalues, _ = at.reduced_eigen(x, mu)
-    return Landing(at.angles(x), at.rigid_energy(x), eigenvalues, residual, float(values[0]))
+    return Landing(at.angles(x), at.rigid_energy(x), eigenvalues, residual)
+
+
+def released_past_a_branch_point(past, theta_star, damping, push, sign):
+    """(start, softest eigenvalue): ``past``'s equilibrium next to the critical state
+    theta_star pushed off by sign * push along its softest mode (a branch point's
+    branch goes on past it, as a saddle once past: the eigenvalue is then negative)."""
+    y, values, modes = past.equilibrium(past.coordinates(theta_star, damping), damping)
+    return y + sign * push * modes[:, 0], float(values[0])
 
 
 def _incidence(ends, nodes):

@@ -116,16 +116,18 @@ class NodeSpringNeck:
             e += 0.5 * self.stiffness * float(np.sum((lengths - self.rigid_length) ** 2))
         return e
 
-    def gradient(self, x):
+    def gradient(self, x, stiff=True):
+        """dE/dx (4N,); without ``stiff``, of the springs and loads alone."""
         springs, rigid, lengths = self._elements(x)
         forces = self.spring_k[:, None] * springs
         g = self.spring_incidence @ forces - self.loads
-        if self.stiffness:
+        if stiff:
             tension = self.stiffness * (lengths - self.rigid_length) / lengths
             g += self.rigid_incidence @ (tension[:, None] * rigid)
         return g[2:].ravel()
 
-    def hessian(self, x):
+    def hessian(self, x, stiff=True):
+        """d2E/dx2 (4N x 4N), exact; without ``stiff``, of the springs alone."""
         p = self.all_nodes(x)
         m = len(p)
         h = np.zeros((m, 2, m, 2))
@@ -138,7 +140,7 @@ class NodeSpringNeck:
 
         for a, b, k in self.springs:
             add(a, b, k * np.eye(2))
-        for a, b, length in self.rigid:
+        for a, b, length in (self.rigid if stiff else ()):
             d = p[a] - p[b]
             r = np.linalg.norm(d)
             u = d / r
@@ -221,23 +223,8 @@ class NodeSpringNeck:
 
     def rigid_forces(self, x):
         """Least-squares multipliers of the rigid lengths (their tensions, N)."""
-        g = self.free_gradient(x)
+        g = self.gradient(x, stiff=False)
         return -np.linalg.lstsq(self.rigid_jacobian(x).T, g, rcond=None)[0]
-
-    def free_gradient(self, x):
-        """Gradient of the springs and loads alone (no rigid lengths)."""
-        stiffness, self.stiffness = self.stiffness, 0.0
-        try:
-            return self.gradient(x)
-        finally:
-            self.stiffness = stiffness
-
-    def free_hessian(self, x):
-        stiffness, self.stiffness = self.stiffness, 0.0
-        try:
-            return self.hessian(x)
-        finally:
-            self.stiffness = stiffness
 
     def lagrangian_hessian(self, x, mu):
         """Hessian of springs - loads + sum mu_e |Xa - Xb|."""
@@ -253,16 +240,17 @@ class NodeSpringNeck:
             h[b, :, b, :] += block
             h[a, :, b, :] -= block
             h[b, :, a, :] -= block
-        return self.free_hessian(x) + h.reshape(2 * m, 2 * m)[4:, 4:]
+        return self.hessian(x, stiff=False) + h.reshape(2 * m, 2 * m)[4:, 4:]
 
     def rigid_polish(self, x, iterations=50, tol=1e-12):
-        """Newton on the KKT system of the rigid model from x: (x*, mu*)."""
+        """Newton on the KKT system of the rigid model from x: (x*, mu*, largest
+        residual), mu the tensions of the rigid lengths (N)."""
         x = np.asarray(x, dtype=float).copy()
         mu = self.rigid_forces(x)
         r = len(self.rigid)
         for _ in range(iterations):
             jac = self.rigid_jacobian(x)
-            residual = np.concatenate([self.free_gradient(x) + jac.T @ mu, self.rigid_residuals(x)])
+            residual = np.concatenate([self.gradient(x, stiff=False) + jac.T @ mu, self.rigid_residuals(x)])
             if np.max(np.abs(residual)) < tol:
                 break
             kkt = np.block([[self.lagrangian_hessian(x, mu), jac.T], [jac, np.zeros((r, r))]])

@@ -524,9 +524,11 @@ def test_n3_nearly_symmetric_neck_head_load_folds_where_the_tracker_says():
     Past the fold module 0 swings through its flat change point (equal rods and chords:
     a parallelogram linkage, whose parallelogram and anti-parallelogram modes cross
     there); two half-branches leave it downhill.  The reference takes the lower-energy
-    one, the tracker the parallelogram one, module 0 at (-pi/2, -pi/2): a convention,
-    not physics (a rod-length asymmetry decides it).  So the tracker's landing must be
-    one of the reference's, and from it on both agree to the end."""
+    one (U = 253.63 J), the tracker the parallelogram one, module 0 at (-pi/2, -pi/2)
+    (U = 256.90 J).  The released mechanism rests on the tracker's (stiff-spring node
+    model, node drag or pivot damping: test_perfect_chord_ramp_landing.py), so the
+    reference's choice is the wrong one; here it is checked only that the tracker's
+    landing is one of the reference's ways out, and from it on both agree to the end."""
     start, end = paper_neck(3, 0.6, 0.0, dict(ka=100.0000001)), \
         paper_neck(3, 0.6, -40.0, dict(ka=100.0000001))
     got, ref = compare_neck(start, end, settle_stack(start, upright(3, 0.6)).theta)

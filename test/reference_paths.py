@@ -20,7 +20,9 @@ steps and stays finite as the step shrinks: it is bisected in s down to ``JUMP_B
 and the first s where it lands far away), then the critical point is solved from the
 bracket on {grad U = 0, det H = 0} (``scipy.optimize.root``), kept only if it lies in
 the bracket.  The landing is the rest point reached by the flow from the last
-continuous state with the parameters frozen at the bracket's far end.
+continuous state with the parameters frozen at the bracket's far end (past a fold,
+``LANDING_OFFSET`` further on: the flow through the fold's ghost takes a time
+~ 1 / sqrt(s - s*)).
 
 One module: energy, gradient and Hessian written again from DESIGN.md section 1.
 A neck of N modules (DESIGN.md section 4): the 2N local angles, the energy from the
@@ -878,8 +880,14 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
         passage = _passage(system, y_a, s_a, s_b)
         if passage is not None:
             return passage
+    s_land = s_b
+    if _nearby_minimum(system, y_a, s_b, None) is None:
+        # past a fold: the flow from y_a crosses the fold's ghost, a passage of time
+        # ~ 1 / sqrt(s - s*) (~1e9 relaxation times at 1e-9 past: minutes for an N = 3
+        # neck), so the landing is taken LANDING_OFFSET on (it moves continuously with s)
+        s_land = min(1.0, s_b + LANDING_OFFSET)
     try:
-        rest_b = flow_to_rest(system, y_a, s_b, push_offs=0)
+        rest_b = flow_to_rest(system, y_a, s_land, push_offs=0)
     except Stalled:
         # a saddle: escaping it right at the event is a flow of time ~ 1 / lambda; the
         # landing is taken a little further on, where lambda is not tiny
@@ -889,8 +897,8 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
         # the step stalled on a saddle (a branch point) but the bisection ended within
         # rounding of it: the landing is taken a little further on
         rest_b = flow_to_rest(system, y_a, min(1.0, s_b + LANDING_OFFSET))
-    if _continuous(system, y_a, s_b, rest_b.state):
-        return s_b, rest_b.state          # continuous after all: where to step on from
+    if _continuous(system, y_a, s_land, rest_b.state):
+        return s_land, rest_b.state       # continuous after all: where to step on from
     passage = None if stalled else _passage(system, y_a, s_a, s_b)
     if passage is not None:
         return passage

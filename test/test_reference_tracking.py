@@ -37,14 +37,24 @@ Nearly symmetric necks (paper modules stacked, upright; an asymmetry 1e-2, 1e-4,
 per top node at rho 0.6, or every chord 0.9 -> 0.2 under -5 N): N = 1 all 24 paths;
 N = 2: 15 paths by default (all 12 chord ramps, ~1 s each, no event; head load with ka
 1e-2, fx 1e-9, L2 1e-6: a snap that the asymmetry makes a fold, through module 0's
-change point, 20-90 s each); the issue's N = 3 neck (ka 100.0000001, head load): 1 path.
-Not run by default, and why: the other 33 N = 2 / N = 3 nearly symmetric paths
-(FULL_NECKS=1 runs all 48).  Run by hand and passing: N = 2 head load ka 1e-9.  N = 3
-chord ramps (ka 1e-4, fx 1e-9) had not finished after 5-9 min under load: not yet
-diagnosed; the other N = 2 head-load and N = 3 paths were not run; N = 5 necks (slower
-still); the perfect N = 3 chord ramp (the reference crashes in a change point: diagnosed
-in session 6, fix not landed, see the issue note); more random N = 2 / 3 necks (each
-costs as much as a nearly symmetric one).
+change point, 20-90 s each); N = 3 chord ramps: 3 paths by default (ka 1e-2, L2 1e-9,
+fx 1e-4, 30-100 s each); the issue's N = 3 neck (ka 100.0000001, head load): 1 path.
+Not run by default, and why: the other 30 N = 2 / N = 3 nearly symmetric paths
+(FULL_NECKS=1 runs all 48; CI time).  Run by hand: N = 2 head load ka 1e-9 passes; N = 3
+chord ramps (FULL_NECKS=1, by hand): ka 1e-2..1e-9, L2 1e-2, 1e-4, 1e-9,
+fx 1e-2, 1e-4 pass; L2 1e-6 FAILS (being diagnosed); fx 1e-6, 1e-9 not finished; the other N = 2 head-load and N = 3
+head-load paths were not run; N = 5 necks (slower still); more random N = 2 / 3 necks
+(each costs as much as a nearly symmetric one).  The perfect N = 3 chord ramp (every
+chord 0.9 -> 0.2 under -5 N) is not run: the tracker and the reference disagree on
+its landing (see PERFECT_N3_CHORD_RAMP below).
+The N = 3 chord ramps' reference crashed (LinAlgError) or crawled for > 9 min: module
+1, a parallelogram linkage like every lower module of these necks, reached its flat
+change point unseen (its chord's gradient in its own angles vanished, but the full row
+also holds a multiple of the row below, through its base), the projected flow crawled
+onto it and the Gram matrix went singular; then every bisection midpoint next to the
+fold was rejected (U of a state rested 1e-7 earlier in s, ~1e-7 off the moved chords,
+differs by ~mu 1e-7 = 3.7e-6 J: the Lagrangian is compared now), and the landing's flow
+through the fold's ghost at 1e-9 past ran 1e9 relaxation times (now LANDING_OFFSET on).
 Perfect (exactly symmetric) modules and necks, run by default: the reference tells a
 supercritical branch point passed continuously (a ReferencePassage: its landing closes
 in like sqrt(s - s*)) from a jump, and the side of a perfect pitchfork is a convention
@@ -578,7 +588,8 @@ def test_near_symmetric_one_module_neck(ramp, kind, eps):
 #: N = 2 and 3 paths run by default (each neck reference path takes 40-90 s alone on
 #: this machine); FULL_NECKS=1 in the environment runs the whole grid (see the docstring).
 NEAR_SYMMETRIC_NECKS = [(2, 'head', 'ka', 1e-2), (2, 'head', 'fx', 1e-9), (2, 'head', 'L2', 1e-6)] \
-    + [(2, 'rho', kind, eps) for kind in ('ka', 'L2', 'fx') for eps in NEAR_SYMMETRIC_EPS]
+    + [(2, 'rho', kind, eps) for kind in ('ka', 'L2', 'fx') for eps in NEAR_SYMMETRIC_EPS] \
+    + [(3, 'rho', 'ka', 1e-2), (3, 'rho', 'L2', 1e-9), (3, 'rho', 'fx', 1e-4)]
 if os.environ.get('FULL_NECKS') == '1':
     NEAR_SYMMETRIC_NECKS = [(n, *case) for n in (2, 3) for case in NEAR_SYMMETRIC_CASES]
 
@@ -613,6 +624,15 @@ def test_perfect_module_passes_its_flat_pitchfork_like_the_reference(rho_end):
 #: buckles sideways continuously at s = 0.1713456, then folds at 0.2921059), 'rho' =
 #: every chord 0.9 -> 0.2 under -5 N per top node.
 PERFECT_NECKS = [(2, 'head'), (3, 'head'), (2, 'rho')]
+#: Not in PERFECT_NECKS: (3, 'rho').  Both find the jump (tracker 0.947227803218,
+#: reference 0.947227802593; the reference's own Hessian turns indefinite between
+#: s* - 1e-9 and s*), but the tracker lands at m0 (-pi/2, -pi/2), m1 (0.6347, 2.1631),
+#: m2 (-1.8253, -0.8941) (U = 289.32 J, stable: lambda_min 5.0 by the reference), the
+#: reference at m0 = m1 = (-1.3316, -1.3316), m2 (-1.3377, -1.3377) (U = 262.43 J,
+#: lambda_min 11.3), after its flow passed module 0's and module 1's change points; the
+#: tracker's landing is not among the reference's recorded alternatives (the top-level
+#: change point's only).  Which way out of the nested change points the flow takes is
+#: not settled: reported, not tested.
 
 
 @pytest.mark.parametrize('n, ramp', PERFECT_NECKS)

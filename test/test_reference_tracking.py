@@ -47,7 +47,7 @@ certified rest: not yet diagnosed); the other N = 2 head-load and N = 3 head-loa
 were not run; N = 5 necks (slower still); more random N = 2 / 3 necks
 (each costs as much as a nearly symmetric one).  The perfect N = 3 chord ramp (every
 chord 0.9 -> 0.2 under -5 N) is not run: the tracker and the reference disagree on
-its landing (see PERFECT_N3_CHORD_RAMP below).
+its landing (see the note under PERFECT_NECKS).
 The N = 3 chord ramps' reference crashed (LinAlgError) or crawled for > 9 min: module
 1, a parallelogram linkage like every lower module of these necks, reached its flat
 change point unseen (its chord's gradient in its own angles vanished, but the full row

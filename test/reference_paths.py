@@ -696,7 +696,8 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None, close=False) -> Rest:
         anchor = None
         weaker = lambda _, x: system.force(base + x, s) - target      # noqa: E731
         weaker.terminal, weaker.direction = True, -1
-        flat = lambda _, x: system.singular_chord(base + x, s) - CHANGE_POINT_GRADIENT  # noqa
+        level = _flat_level(system, y, s)
+        flat = lambda _, x: system.singular_chord(base + x, s) - level    # noqa: E731
         flat.terminal, flat.direction = True, -1
         sol = solve_ivp(lambda _, x: system.velocity(base + x, s), (0.0, chunk), y - base,
                         method='LSODA', rtol=1e-10, atol=atol, events=(weaker, flat),
@@ -712,6 +713,16 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None, close=False) -> Rest:
         if sol.status != 1:
             chunk *= 4.0
     raise NoRest(f'no certified rest at s={s!r} from {y0} within {MAX_LEGS} legs')
+
+
+def _flat_level(system, y, s):
+    """The flatness (``singular_chord``) at which a leg from y stops to look for a change
+    point: CHANGE_POINT_GRADIENT, or a tenth of y's own if y is already that flat.  A leg
+    that ended on this event where no crossing was found (a module flat at a linkage
+    limit: its chord's solution set does not cross itself) starts on the event's root;
+    with the same level the integrator finds the event again at t = 0, and every leg
+    after it stops there (the flat-module linkage test: 200 empty legs at s = 0.5039)."""
+    return min(CHANGE_POINT_GRADIENT, 0.1 * system.singular_chord(y, s))
 
 
 def _closest_to_a_change_point(system, base, sol, s, start):

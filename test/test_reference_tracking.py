@@ -82,8 +82,8 @@ from tensegrity_ros.core.continuation import TrackingError
 from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 from tensegrity_ros.core.supported_range import LOAD_RATIO
 
-from reference_paths import (FIELDS, ModuleSystem, NeckSystem, angle_distance, other_sides,
-                             quasi_static_path, settle_reference)
+from reference_paths import (FIELDS, ModuleSystem, NeckSystem, angle_distance, flow_to_rest,
+                             other_sides, quasi_static_path, settle_reference)
 
 #: A reported jump and the reference's must be this close in s.
 LOCATION_TOL = 1e-7
@@ -509,6 +509,30 @@ def test_neck_n2_random_rho_path():
     start = Stack((random_module(rng, 1.0).with_(rho=0.7), random_module(rng, 1.0).with_(rho=0.7)))
     end = start.with_module(0, rho=0.9).with_module(1, rho=0.5)
     compare_neck(start, end, np.full((2, 2), 0.8))
+
+
+def test_reference_flow_goes_on_past_a_flat_module_at_its_linkage_limit():
+    """N = 3 unloaded paper neck, module 0 at rho 1.2 -> 1.3 (flat where rho0 + rho1 =
+    L1 + L2, rho0 = 1.25), frozen at s = 0.50390625: released nearly flat on the upright
+    side (the state the reference gave up from in test_neck_linkage_limits), the flow
+    reaches the flat-module level CHANGE_POINT_GRADIENT, finds no change point (a
+    linkage limit, not a crossing) and must go on to rest on the crossed branch.  The
+    reference of main and of s6-ref2 gave up here (NoRest, 200 legs): each leg started
+    on the flat event's own root and LSODA found the event again at t = 0.  Checked
+    against the tracker's state at that s (up to the neck's mirror image)."""
+    s = 0.50390625
+    neck = Stack(tuple(ModuleParams.paper(0.75) for _ in range(3)))
+    start, end = neck.with_module(0, rho=1.2), neck.with_module(0, rho=1.3)
+    system = NeckSystem(start.modules, end.modules)
+    rest = flow_to_rest(system, np.array([0.01976456] * 2 + [0.72273425] * 4), s)
+    upright = np.full((3, 2), 0.7227342478134157)
+    before = track_stack(neck, start, upright)
+    rho = 1.2 + s * (1.3 - 1.2)                      # the straight path p(s), at s
+    got = track_stack(start, neck.with_module(0, rho=rho), before.final)
+    assert got.status == 'ok' and got.jumps == (), got.message
+    mine = np.ravel(got.final.theta)
+    mirrored = mine.reshape(-1, 2)[:, ::-1].ravel()
+    assert min(angle_distance(rest.state, mine), angle_distance(rest.state, mirrored)) < 1e-6
 
 
 # -- the nearly symmetric N = 3 neck of the issue -----------------------------------------------

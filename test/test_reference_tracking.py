@@ -41,12 +41,12 @@ change point, 20-90 s each); N = 3 chord ramps: 3 paths by default (ka 1e-2, L2 
 fx 1e-4, 30-100 s each); the issue's N = 3 neck (ka 100.0000001, head load): 1 path.
 Not run by default, and why: the other 30 N = 2 / N = 3 nearly symmetric paths
 (FULL_NECKS=1 runs all 48; CI time).  Run by hand: N = 2 head load ka 1e-9 passes; N = 3
-chord ramps (FULL_NECKS=1, by hand, 34-101 s each): 11 of 12 passed on session 6's
-reference; L2 1e-6 failed in it (NoRest: 200 flow legs at s = 0.94873046875, just past
-the fold; 190 of them stopped at t = 0 on the flat event, see the next paragraph) and
-passes now (~190 s under load); the other N = 2 head-load and N = 3 head-load paths
-were not run; N = 5 necks (slower still); more random N = 2 / 3 necks
-(each costs as much as a nearly symmetric one).  The perfect N = 3 chord ramp (every
+chord ramps (FULL_NECKS=1, by hand): all 12 pass (73-410 s each at load 3-5; 11 of 12
+passed on session 6's reference, where L2 1e-6 failed: NoRest, 200 flow legs at s =
+0.94873046875 just past the fold, 190 of them stopped at t = 0 on the flat event, see
+the next paragraph); the other N = 2 head-load and N = 3 head-load paths were not run;
+N = 5 necks (slower still); more random N = 2 / 3 necks (each costs as much as a nearly
+symmetric one).  The perfect N = 3 chord ramp (every
 chord 0.9 -> 0.2 under -5 N) is not run: the tracker and the reference disagree on
 its landing (see the note under PERFECT_NECKS).
 The N = 3 chord ramps' reference crashed (LinAlgError) or crawled for > 9 min: module

@@ -20,7 +20,9 @@ steps and stays finite as the step shrinks: it is bisected in s down to ``JUMP_B
 and the first s where it lands far away), then the critical point is solved from the
 bracket on {grad U = 0, det H = 0} (``scipy.optimize.root``), kept only if it lies in
 the bracket.  The landing is the rest point reached by the flow from the last
-continuous state with the parameters frozen at the bracket's far end.
+continuous state with the parameters frozen at the bracket's far end (past a fold,
+``LANDING_OFFSET`` further on: the flow through the fold's ghost takes a time
+~ 1 / sqrt(s - s*)).
 
 One module: energy, gradient and Hessian written again from DESIGN.md section 1.
 A neck of N modules (DESIGN.md section 4): the 2N local angles, the energy from the
@@ -254,6 +256,10 @@ class ModuleSystem:
 
     def change_point_branches(self, t, s):
         return None
+
+    def energy_seen_from(self, star, t, s):
+        """The energy at t compared with the minimum star's (no constraints: U itself)."""
+        return self.energy(t, s)
 
     def is_stable_equilibrium(self, t, s, tol=1e-8):
         """Gradient ~ 0 (relative) and Hessian positive definite, by this reference."""
@@ -496,20 +502,28 @@ class NeckSystem:
         return np.concatenate([f[:m] / scale, f[m:], [det]])
 
     def singular_chord(self, theta, s):
-        """The smallest chord-constraint gradient norm over a length: ~0 where a module
-        lies flat at a change point of its linkage (see :meth:`change_point_branches`)."""
-        jac = self.constraint_jacobian(theta, s)
-        if jac.shape[0] == 0:
+        """The smallest chord-constraint gradient over a length, each in its own module's
+        two angles: ~0 where a module lies flat at a change point of its linkage (see
+        :meth:`change_point_branches`).  (Chord i also moves with the lower modules' angles,
+        through its base, the chord below: that part is a multiple of the row below, so it
+        hides the rank loss from the full row's norm.)"""
+        own = self._own_chord_gradients(theta, s)
+        if own.size == 0:
             return 1.0
-        length = float(np.max(self.values(s)[:, 1:3]))
-        return float(np.min(np.linalg.norm(jac, axis=1))) / length
+        return float(np.min(own)) / float(np.max(self.values(s)[:, 1:3]))
 
-    def _module_chord(self, i, angles, s):
-        """Module i's chord constraint as a function of its own two angles only (the
-        chord is in the module's own frame: its base and its rods)."""
-        theta = np.zeros(2 * self.n)
-        theta[2 * i:2 * i + 2] = angles
-        return self.constraints(theta, s)[i]
+    def _own_chord_gradients(self, theta, s):
+        """|d chord_i / d (module i's angles)| for each chord constraint i."""
+        jac = self.constraint_jacobian(theta, s)
+        return np.array([np.linalg.norm(jac[i, 2 * i:2 * i + 2]) for i in range(jac.shape[0])])
+
+    def _module_chord(self, i, theta, angles, s):
+        """Module i's chord constraint as a function of its own two angles, the other
+        modules held at ``theta`` (the chord is in the module's own frame: its base, the
+        chord below, and its rods)."""
+        probe = np.array(theta, dtype=float)
+        probe[2 * i:2 * i + 2] = angles
+        return self.constraints(probe, s)[i]
 
     def change_point_branches(self, theta, s, push=CHANGE_POINT_PUSH):
         """(crossing, [states]) where module i lies flat at a change point of its linkage.
@@ -522,11 +536,11 @@ class NeckSystem:
         returned as states ``push`` rad out along each, put back on the constraint by a
         Newton step along its gradient.  None if no module is at a crossing."""
         theta = np.asarray(theta, dtype=float)
-        jac = self.constraint_jacobian(theta, s)
-        if jac.shape[0] == 0:
+        own = self._own_chord_gradients(theta, s)
+        if own.size == 0:
             return None
-        i = int(np.argmin(np.linalg.norm(jac, axis=1)))
-        chord = lambda a: self._module_chord(i, a, s)              # noqa: E731
+        i = int(np.argmin(own))
+        chord = lambda a: self._module_chord(i, theta, a, s)       # noqa: E731
         h = 1e-5
 
         def gradient(a):
@@ -564,6 +578,16 @@ class NeckSystem:
                 states.append(state)
         return crossing, states
 
+    def energy_seen_from(self, star, theta, s):
+        """The Lagrangian U + mu* . c at theta, mu* the multipliers of the constrained
+        minimum star (equal to U there): the energy to compare with star's.  U alone
+        moves to first order off the constraint set (the chord forces): a state rested
+        at a nearby s lies ~1e-7 off it after a 1e-7 step in s, its U then differs by
+        ~mu 1e-7 (3.7e-6 J next to the N = 3 chord ramp's fold), more than the minimum's
+        own energy drop."""
+        mu = self.multipliers(star, s)
+        return self.energy(theta, s) + float(mu @ self.constraints(theta, s))
+
     def is_stable_equilibrium(self, theta, s, tol=1e-8):
         theta = np.asarray(theta, dtype=float).ravel()
         mu = self.multipliers(theta, s)
@@ -600,7 +624,7 @@ def rest_certified(system, y, s, star, low, bound, close=False):
         return True
     if system.force(y, s) > CLOSE_FORCE or angle_distance(star, y) > CLOSE_DISTANCE:
         return False
-    if system.energy(star, s) > system.energy(y, s) + 1e-13 * system.rate(s):
+    if system.energy(star, s) > system.energy_seen_from(star, y, s) + 1e-13 * system.rate(s):
         return False
     v = system.velocity(y, s)
     return float(v @ (star - y)) >= 0.9 * float(np.linalg.norm(v)) * r
@@ -672,7 +696,8 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None, close=False) -> Rest:
         anchor = None
         weaker = lambda _, x: system.force(base + x, s) - target      # noqa: E731
         weaker.terminal, weaker.direction = True, -1
-        flat = lambda _, x: system.singular_chord(base + x, s) - CHANGE_POINT_GRADIENT  # noqa
+        level = _flat_level(system, y, s)
+        flat = lambda _, x: system.singular_chord(base + x, s) - level    # noqa: E731
         flat.terminal, flat.direction = True, -1
         sol = solve_ivp(lambda _, x: system.velocity(base + x, s), (0.0, chunk), y - base,
                         method='LSODA', rtol=1e-10, atol=atol, events=(weaker, flat),
@@ -688,6 +713,16 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None, close=False) -> Rest:
         if sol.status != 1:
             chunk *= 4.0
     raise NoRest(f'no certified rest at s={s!r} from {y0} within {MAX_LEGS} legs')
+
+
+def _flat_level(system, y, s):
+    """The flatness (``singular_chord``) at which a leg from y stops to look for a change
+    point: CHANGE_POINT_GRADIENT, or a tenth of y's own if y is already that flat.  A leg
+    that ended on this event where no crossing was found (a module flat at a linkage
+    limit: its chord's solution set does not cross itself) starts on the event's root;
+    with the same level the integrator finds the event again at t = 0, and every leg
+    after it stops there (the flat-module linkage test: 200 empty legs at s = 0.5039)."""
+    return min(CHANGE_POINT_GRADIENT, 0.1 * system.singular_chord(y, s))
 
 
 def _closest_to_a_change_point(system, base, sol, s, start):
@@ -856,8 +891,14 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
         passage = _passage(system, y_a, s_a, s_b)
         if passage is not None:
             return passage
+    s_land = s_b
+    if _nearby_minimum(system, y_a, s_b, None) is None:
+        # past a fold: the flow from y_a crosses the fold's ghost, a passage of time
+        # ~ 1 / sqrt(s - s*) (~1e9 relaxation times at 1e-9 past: minutes for an N = 3
+        # neck), so the landing is taken LANDING_OFFSET on (it moves continuously with s)
+        s_land = min(1.0, s_b + LANDING_OFFSET)
     try:
-        rest_b = flow_to_rest(system, y_a, s_b, push_offs=0)
+        rest_b = flow_to_rest(system, y_a, s_land, push_offs=0)
     except Stalled:
         # a saddle: escaping it right at the event is a flow of time ~ 1 / lambda; the
         # landing is taken a little further on, where lambda is not tiny
@@ -867,8 +908,8 @@ def _bisect_jump(system, s_a, y_a, s_b, rest_b, stalled=False):
         # the step stalled on a saddle (a branch point) but the bisection ended within
         # rounding of it: the landing is taken a little further on
         rest_b = flow_to_rest(system, y_a, min(1.0, s_b + LANDING_OFFSET))
-    if _continuous(system, y_a, s_b, rest_b.state):
-        return s_b, rest_b.state          # continuous after all: where to step on from
+    if _continuous(system, y_a, s_land, rest_b.state):
+        return s_land, rest_b.state       # continuous after all: where to step on from
     passage = None if stalled else _passage(system, y_a, s_a, s_b)
     if passage is not None:
         return passage
@@ -954,7 +995,8 @@ def _nearby_minimum(system, y_a, s_m, y_b):
     if y_b is not None and angle_distance(star, y_a) >= angle_distance(star, y_b):
         return None
     slack = 1e-13 * system.rate(s_m)     # energies differ by ~lambda d^2 ~ rounding here
-    return star if system.energy(star, s_m) <= system.energy(y_a, s_m) + slack else None
+    return star if system.energy(star, s_m) <= system.energy_seen_from(star, y_a, s_m) + slack \
+        else None
 
 
 def critical_point_in(system, y_a, s_a, s_b, slack=1e-10):

@@ -33,13 +33,13 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from typing import Protocol
+from dataclasses import dataclass, field, replace
+from typing import Callable, Protocol
 
 import numpy as np
 from scipy.integrate import LSODA
 
-from .bounded_work import checkpoint
+from .bounded_work import Budget, checkpoint
 from .tolerances import DEFINITENESS_TOL
 
 FOLD = 'fold'
@@ -123,8 +123,13 @@ class TrackerSettings:
     #: Past a linkage limit the minimum is looked for this far on (in s, and 100 times
     #: closer, to see that it closes in: see ``_Tracker.through_linkage_limit``).
     linkage_offset: float = 1e-6
-    #: Wall-clock seconds one command may take before it gives up (None: no limit).
+    #: Seconds one command may take before it gives up (None: no limit): checked at every
+    #: check point (:func:`.bounded_work.checkpoint`), nested landings, followers and
+    #: bisections included, so a command ends at most one check point's work past it,
+    #: on its last verified state (status 'failed').
     time_budget: float | None = None
+    #: The clock ``time_budget`` is read on (tests inject a counting clock).
+    clock: Callable[[], float] = time.perf_counter
 
 
 @dataclass(frozen=True)
@@ -246,8 +251,8 @@ class _Tracker:
         #: Stop (failed) at a critical point instead of landing: a landing's own
         #: minimum followed back to its event (nested landings there could recurse).
         self.stop_at_events = False
-        self.deadline = (None if settings.time_budget is None
-                         else time.perf_counter() + settings.time_budget)
+        #: The last verified state of :meth:`run` (what a spent time budget returns).
+        self.kept = None
         weights = getattr(problem, 'state_weights', None)
         self.weights = None if weights is None else np.asarray(weights, dtype=float)
 
@@ -343,15 +348,13 @@ class _Tracker:
         elif not (self.certificate and self.soft_minimum(eigenvalues)):
             raise TrackingError('the start state is not a stable equilibrium')
         events = []
+        self.keep(y, s, eigenvalues, events)
         ds, rate = 1.0, None
         while s < s_end:
             self.steps += 1
-            checkpoint()                # a bounded caller may pause here (bounded_work)
+            checkpoint()                # a bounded caller may pause (or give up) here
             if self.steps > cfg.max_steps:
                 return self.result(y, s, eigenvalues, events, 'failed', 'too many steps')
-            if self.out_of_time():
-                return self.result(y, s, eigenvalues, events, 'failed',
-                                   f'time budget of {cfg.time_budget:g} s used up at s={s!r}')
             try:
                 tangent = self.tangent(y, s)
             except np.linalg.LinAlgError:
@@ -368,6 +371,7 @@ class _Tracker:
                 self.certificate = PITCHFORK_CERTIFIED if certified else ''
                 rate = self.last_rate = (eig1[0] - eigenvalues[0]) / ds
                 y, s, eigenvalues = y1, s + ds, eig1
+                self.keep(y, s, eigenvalues, events)
                 self.rescale(eigenvalues)
                 ds *= 2.0
                 continue
@@ -382,6 +386,7 @@ class _Tracker:
                     _, y1, s1, eig1 = arc
                     self.last_rate = (eig1[0] - eigenvalues[0]) / (s1 - s)
                     y, s, eigenvalues, rate = y1, s1, eig1, None
+                    self.keep(y, s, eigenvalues, events)
                     self.rescale(eigenvalues)
                     continue
                 if arc is not None:
@@ -409,6 +414,7 @@ class _Tracker:
                 if event is not None:
                     events.append(event)
                 eigenvalues = self.eigenvalues(y, s)
+                self.keep(y, s, eigenvalues, events)
                 self.rescale(eigenvalues)
                 ds, rate = 1.0, None
                 continue
@@ -465,8 +471,17 @@ class _Tracker:
             self.base_scale = max(local, 1e-300)
         self.scale = local if 0.0 < local < self.base_scale else self.base_scale
 
-    def out_of_time(self):
-        return self.deadline is not None and time.perf_counter() > self.deadline
+    def keep(self, y, s, eigenvalues, events):
+        """Note a verified state of :meth:`run` (with its certificate and the events
+        before it): where the time budget runs out, the command ends there."""
+        self.kept = (y, s, eigenvalues, tuple(events), self.certificate)
+
+    def out_of_budget(self):
+        """The result of a run whose time budget ran out: its last verified state."""
+        y, s, eigenvalues, events, self.certificate = self.kept
+        return self.result(y, s, eigenvalues, events, 'failed',
+                           f'time budget of {self.settings.time_budget:g} s used up '
+                           f'(last verified state at s={float(s)!r})')
 
     def result(self, y, s, eigenvalues, events, status='ok', message=''):
         return Track(state=y, s=s, eigenvalues=np.asarray(eigenvalues), events=tuple(events),
@@ -973,7 +988,7 @@ class _Tracker:
 
         def velocity(_t, v):
             budget[0] -= 1
-            if budget[0] < 0 or (budget[0] % 64 == 0 and self.out_of_time()):
+            if budget[0] < 0:
                 raise _FlowBudgetExceeded
             if budget[0] % 8 == 0:  # inside a solver step too: a neck's takes ~30
                 checkpoint()        # evaluations (scipy >= 1.17's LSODA is re-entrant)
@@ -1125,8 +1140,34 @@ def track(problem: PathProblem, y0, settings: TrackerSettings = TrackerSettings(
     Raises :class:`TrackingError` if ``y0`` is not (close to) a stable
     equilibrium at s = 0; every other outcome is reported in the result.
     ``certificate``: the :attr:`Track.certificate` ``y0`` was verified with, if any.
+    Where ``settings.time_budget`` runs out, the result is the last verified state
+    (status 'failed', the reason in ``message``).
     """
-    return _Tracker(problem, settings).run(np.array(y0, dtype=float), certificate=certificate)
+    tracker = _Tracker(problem, settings)
+    with Budget(settings.time_budget, settings.clock):
+        return tracker.run(np.array(y0, dtype=float), certificate=certificate)
+    return tracker.out_of_budget()      # reached only where the budget ran out
+
+
+def track_settled(problem: PathProblem, y0, settings: TrackerSettings = TrackerSettings(),
+                  certificate='') -> Track:
+    """:func:`track` from ``y0``, or, where ``y0`` is not a stable equilibrium at s = 0,
+    from where the mechanism released there settles (:func:`settle`, from ``y0``
+    projected); the settling and the tracking share one ``settings.time_budget``."""
+    started = settings.clock()
+    try:
+        return track(problem, y0, settings, certificate)
+    except TrackingError:
+        pass
+
+    def left():
+        if settings.time_budget is None:
+            return settings
+        return replace(settings,
+                       time_budget=max(settings.time_budget - (settings.clock() - started), 0.0))
+
+    y0 = settle(problem, problem.project(np.array(y0, dtype=float), 0.0), 0.0, left())
+    return track(problem, y0, left())
 
 
 def settle(problem: PathProblem, y0, s=0.0, settings: TrackerSettings = TrackerSettings()):
@@ -1135,9 +1176,17 @@ def settle(problem: PathProblem, y0, s=0.0, settings: TrackerSettings = TrackerS
     Returns the verified stable state, or raises :class:`TrackingError`.  A start
     on a saddle's stable set is pushed off along the unstable mode (both ways;
     the lower-energy landing wins) so that the answer is always a minimum.
+    ``settings.time_budget`` bounds it too (running out raises TrackingError).
     """
+    with Budget(settings.time_budget, settings.clock):
+        return _settle(problem, np.array(y0, dtype=float), s, settings)
+    raise TrackingError(f'time budget of {settings.time_budget:g} s used up before the '
+                        f'mechanism came to rest')
+
+
+def _settle(problem, y0, s, settings):
+    """:func:`settle` without its time budget."""
     tracker = _Tracker(problem, settings)
-    y0 = np.array(y0, dtype=float)
     eigenvalues, modes = problem.stability(y0, s)
     tracker.scale = max(float(np.max(np.abs(eigenvalues))), 1e-300)   # any start, not only a minimum
     y = tracker.newton(y0, s) if tracker.residual_ok(y0, s) else None

@@ -244,16 +244,13 @@ def track_module(start: ModuleParams, end: ModuleParams, theta,
 
     If ``theta`` is not a stable equilibrium at ``start`` the mechanism first
     settles (see :func:`settle`).  Every jump on the way is in ``jumps``.
+    ``settings.time_budget`` bounds the whole call, settling included.
     ``certificate``: the previous command's :attr:`ModuleTrack.certificate` where
     ``theta`` is its final state.
     """
     theta = _checked_theta(theta)
     path = ModulePath(start, end)
-    try:
-        result = _continuation.track(path, theta, settings, certificate)
-    except _continuation.TrackingError:
-        theta = _continuation.settle(path, theta)
-        result = _continuation.track(path, theta, settings)
+    result = _continuation.track_settled(path, theta, settings, certificate)
     jumps = tuple(ModuleJump(kind=e.kind, s=e.s, params=path.params(e.s),
                              from_theta=_wrap(e.state), to_theta=_wrap(e.landing),
                              ambiguous=e.ambiguous, landing_params=path.params(e.landing_s))

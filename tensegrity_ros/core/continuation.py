@@ -251,9 +251,10 @@ class _Tracker:
         #: Stop (failed) at a critical point instead of landing: a landing's own
         #: minimum followed back to its event (nested landings there could recurse).
         self.stop_at_events = False
-        #: From a pitchfork-certified start, solve a command back towards its branch point
-        #: by the normal form (off in the tracker that follows the branch away for it).
-        self.normal_form_start = True
+        #: From a pitchfork-certified state, solve a command's end short of its branch
+        #: point by the normal form (off in the tracker that follows the branch away for it).
+        self.normal_form_end = True
+        self.normal_form_tried = None   # the s it was tried at (once per state)
         #: The last verified state of :meth:`run` (what a spent time budget returns).
         self.kept = None
         weights = getattr(problem, 'state_weights', None)
@@ -352,10 +353,6 @@ class _Tracker:
             raise TrackingError('the start state is not a stable equilibrium')
         events = []
         self.keep(y, s, eigenvalues, events)
-        if self.certificate and self.normal_form_start:     # just past a passed branch point
-            ended = self.toward_branch_point(y, eigenvalues, s_end)
-            if ended is not None:
-                return self.result(ended, s_end, self.eigenvalues(ended, s_end), events)
         ds, rate = 1.0, None
         while s < s_end:
             self.steps += 1
@@ -381,6 +378,12 @@ class _Tracker:
                 self.keep(y, s, eigenvalues, events)
                 self.rescale(eigenvalues)
                 ds *= 2.0
+                continue
+            ended = self.toward_branch_point(y, s, s_end)      # certified y only
+            if ended is not None:
+                y, s = ended
+                eigenvalues = self.eigenvalues(y, s)
+                self.keep(y, s, eigenvalues, events)
                 continue
             found = None
             if reason == 'indefinite':
@@ -844,53 +847,61 @@ class _Tracker:
             return found
         return None
 
-    def toward_branch_point(self, y, eigenvalues, s_end):
-        """From a start certified by a passed pitchfork's normal form (its buckled branch,
-        ~1e-6 in s or less past the branch point), the state at s_end where the command runs
-        back towards the branch point and ends short of it; ``None`` otherwise (then the
-        steps go on as from any start; a command moving away from it steps fine).
+    def toward_branch_point(self, y, s, s_end):
+        """From a state certified by a passed pitchfork's normal form (its buckled branch
+        within ~1e-6 in s past the branch point), where the command runs back towards the
+        branch point and ends short of it: (state at s_end, s_end); else ``None``.  Tried
+        where a step from such a state is rejected, once per state.
 
         Steps cannot get there: Newton pins such a state along the soft mode only to ~1e-6
         (lambda_min / lambda_max ~ 1e-11 at 1e-9 past on the N = 3 neck), above the
         corrector's slack, so every natural step is 'far'; and [F_y F_s] is rank-deficient
         at a branch point, so arclength steps fail too.  So the branch point is found from
         the normal form instead: the buckled branch is followed the other way (away from
-        the branch point, path extended backwards) until lambda_min passes the margin test
-        100-fold; lambda_min's linear law through both states gives s*, the square root
-        law y*, and :meth:`buckled_at` solves the end state from the far one."""
+        the branch point, the path extended backwards) until lambda_min passes the margin
+        test 100-fold; lambda_min's linear law through both states gives s*, the square
+        root law y*, and :meth:`buckled_at` solves the end state from the far one.  (Two
+        far states would avoid y's noise, but lambda_min's law is linear only to ~1e-4
+        that far, which puts s* off by more.)"""
+        if not (self.certificate and self.normal_form_end and s < s_end
+                and self.normal_form_tried != s):
+            return None
+        self.normal_form_tried = s
         certificate, self.certificate = self.certificate, ''
-        found = None
-        far = self.away_from_branch_point(y, certificate)
+        lam, found = self.eigenvalues(y, s)[0], None
+        far = self.away_from_branch_point(y, s, s_end - s, certificate)
         if far is not None:
             s_far, far_state, far_eigenvalues = far
-            rate = (far_eigenvalues[0] - eigenvalues[0]) / s_far
-            s_star = -eigenvalues[0] / rate if rate < 0.0 else -math.inf
-            if 0.0 < s_end < s_star:
-                ratio = math.sqrt(s_star / (s_star - s_far))      # of the start's amplitude
+            rate = (far_eigenvalues[0] - lam) / (s_far - s)
+            s_star = s - lam / rate if rate < 0.0 else -math.inf
+            if s_end < s_star:
+                ratio = math.sqrt((s_star - s) / (s_star - s_far))     # of y's amplitude
                 y_star = (y - ratio * far_state) / (1.0 - ratio)
                 found = self.buckled_at(s_star, y_star, far_state, s_far, s_end)
         if found is None:
             self.certificate = certificate
-        return found
+            return None
+        return found, s_end
 
-    def away_from_branch_point(self, y, certificate):
-        """(s, state, eigenvalues) on the buckled branch through the certified ``y`` (s = 0),
-        followed backwards along the path (s < 0) until lambda_min passes the margin test
-        100-fold, or ``None`` (an event on the way, or not within 1e7 command lengths)."""
+    def away_from_branch_point(self, y, s, length, certificate):
+        """(s, state, eigenvalues) on the buckled branch through the certified ``y`` at s,
+        followed backwards along the path by 1, 10 .. 1e7 times ``length`` until lambda_min
+        passes the margin test 100-fold, or ``None``.  A short one may fail: a state that
+        close to the branch point is known along the soft mode only to ~1e-6, so steps of
+        a few 1e-12 in s are 'far' however short."""
         margin = 100.0 * self.settings.definiteness_tol
-        for extent in 10.0 ** np.arange(8):
-            if not _admissible(self.problem, -extent):
+        for extent in length * 10.0 ** np.arange(8):
+            if not _admissible(self.problem, s - extent):
                 return None
-            # (min_step: where this runs towards the branch point instead, i.e. the command
-            # goes away from it, its steps fail at once: give up after ~20 halvings, not 40)
-            away = _Tracker(_Segment(self.problem, 0.0, -extent),
+            # (min_step: where its steps fail, give up after ~20 halvings, not 40)
+            away = _Tracker(_Segment(self.problem, s, s - extent),
                             replace(self.settings, min_step=1e-6))
-            away.normal_form_start = False
+            away.normal_form_end = False
             far = away.run(y, certificate=certificate)
             if far.status != 'ok' or far.events or far.passages:
-                return None
+                continue                # too short to leave the noise (or the wrong way)
             if far.eigenvalues[0] > margin * max(abs(far.eigenvalues[-1]), self.scale * 1e-3):
-                return -extent, far.state, far.eigenvalues
+                return s - extent, far.state, far.eigenvalues
         return None
 
     def pitchfork_certified(self, eigenvalues, far, fraction):

@@ -256,7 +256,9 @@ def track_module(start: ModuleParams, end: ModuleParams, theta,
                              ambiguous=e.ambiguous, landing_params=path.params(e.landing_s))
                   for e in result.events)
     reached = end if result.s == 1.0 else path.params(result.s)
-    final = replace(equilibrium_at(reached, result.state), certificate=result.certificate)
+    final = equilibrium_at(reached, result.state)
+    if result.certificate:              # (rare: a replace costs ~2 us per command)
+        final = replace(final, certificate=result.certificate)
     return ModuleTrack(final=final, end=reached, jumps=jumps,
                        status=result.status, message=result.message, steps=result.steps,
                        passages=tuple(path.params(s) for s, _ in result.passages),

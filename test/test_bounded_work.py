@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.bounded_work import Job, checkpoint
+from tensegrity_ros.core.bounded_work import Budget, Job, checkpoint
 from tensegrity_ros.core.events import Deferred, Jump, TrackingFailure
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 
@@ -105,6 +105,35 @@ def test_cancel_unwinds_a_paused_job():
     assert not job.run(clock() + 3) and not job.run(clock() + 3)
     job.cancel()
     assert job.done and record == ['unwound', 'unwound']     # the inline try and the worker
+
+
+def budgeted(clock, budget, steps):
+    """Work of ``steps`` check points in a Budget: (spent, check points passed)."""
+    def work():
+        passed = 0
+        with Budget(budget, clock) as spent:
+            for _ in range(steps):
+                checkpoint()
+                passed += 1
+        return spent.spent, passed
+    return work
+
+
+def test_a_budget_ends_its_block_at_the_first_checkpoint_past_its_deadline():
+    # read at entry (1), deadline 6: the check points reading 2 .. 6 pass, the 6th ends it
+    assert budgeted(CountingClock(), 5, 1000)() == (True, 5)
+    assert budgeted(CountingClock(), 5, 3)() == (False, 3)
+    assert budgeted(CountingClock(), None, 1000)() == (False, 1000)
+    checkpoint()                    # the hook is gone after the block
+
+
+def test_a_budget_inside_a_job_pauses_with_the_job_and_still_ends():
+    clock = CountingClock()
+    job = Job(budgeted(clock, 40, 1000), clock)
+    calls = run_to_end(job, clock, budget=3)
+    assert calls > 1                # the job paused at the budget's check points
+    spent, passed = job.result()    # the clock is shared (the job's checks read it too)
+    assert spent and 0 < passed < 40
 
 
 # -- the simulator ---------------------------------------------------------------------

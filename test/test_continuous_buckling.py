@@ -125,3 +125,32 @@ def test_a_module_command_ending_just_past_its_passage_ends_ok():
                             whole.final.theta)
         assert back.status == 'ok' and back.jumps == (), past
         np.testing.assert_allclose(back.final.theta, result.final.theta, atol=1e-9)
+
+
+def test_a_neck_command_from_just_past_its_passage_back_towards_it_ends_ok():
+    """From a state certified 1e-9 (or 1e-7) past the N = 3 neck's passage, a command
+    back towards it, ending 1e-10 .. 5e-10 past, stays on the buckled branch: ok, no jump,
+    no passage, a minimum on the same side, on the square root through the passage and a
+    longer command's end.  These ended 'failed' before (every natural step 'far': Newton
+    pins such a state along the soft mode only to ~1e-6, above the corrector's slack).
+    The same from -10 N, where the steps reach 3e-12 in s short of the end (certified by
+    the linear law) and then fail: it then landed on a false fold, recursively, > 300 s.
+    The square root holds here only to the noise floor, hence 25 %: 1e-10 past,
+    lambda_min is 6e-12 of lambda_max, and Newton started on the one-command state itself
+    moves it along the soft mode by -30 .. +12 % of the buckling amplitude (lambda_min
+    by -50 .. +25 %)."""
+    start = neck(3, 0.6, 1.0, 100.0, 0.0)
+    first = settle_stack(start, upright_guess(start.modules))
+    whole = track_stack(start, at_load(start, -10.0), first)
+    passage = whole.passages[0]
+    critical = passage.stack.modules[-1].f3y
+    far = track_stack(start, at_load(start, critical * (1.0 + FAR)), first).final.theta
+    for past, back_to in ((1e-9, 1e-10), (1e-9, 5e-10), (1e-7, 1e-10), (None, 1e-10)):
+        there = at_load(start, -10.0 if past is None else critical * (1.0 + past))
+        certified = whole.final if past is None else track_stack(start, there, first).final
+        result = track_stack(there, at_load(start, critical * (1.0 + back_to)), certified)
+        assert result.status == 'ok', (past, back_to, result.message)
+        assert result.final.stable and result.jumps == () and result.passages == ()
+        assert (result.final.theta - passage.theta).ravel() @ (far - passage.theta).ravel() > 0
+        deviation = on_the_square_root(result.final.theta, passage.theta, far, back_to)
+        assert deviation < 0.25, (past, back_to, deviation)    # 0.067, 0.022, 0.14, 0.016 seen

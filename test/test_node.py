@@ -542,9 +542,9 @@ def test_tracking_failure_keeps_the_last_verified_state(harness, monkeypatch):
     import tensegrity_ros.core.mechanisms as node_module
     real = node_module.track_module
 
-    def stops_halfway(start, end, theta):
+    def stops_halfway(start, end, theta, **options):
         middle = start.with_(rho=0.5 * (start.rho + end.rho))
-        track = real(start, middle, theta)
+        track = real(start, middle, theta, **options)
         return dataclasses.replace(track, status='failed', message='injected stop')
 
     h = harness().ready()

@@ -230,8 +230,8 @@ def test_tracking_failure_keeps_the_verified_state_and_clears_on_success(monkeyp
 def test_an_unverified_tracker_result_is_never_taken(monkeypatch):
     real = mechanisms.track_module
 
-    def saddle(start, end, theta):
-        track = real(start, end, theta)
+    def saddle(start, end, theta, **options):
+        track = real(start, end, theta, **options)
         final = track.final
         import dataclasses
         ev = np.array([-1.0, final.eigenvalues[-1]])
@@ -352,6 +352,27 @@ def test_a_neck_load_ending_just_past_its_sideways_buckling_is_taken():
     stack = Stack(modules)
     expected = track_stack(stack, stack.with_module(2, f3y=-10.0, f4y=-10.0),
                            settle_stack(stack, guess))
+    np.testing.assert_allclose(sim.state.theta, expected.final.theta, atol=1e-9)
+
+
+def test_a_module_rho_ending_just_past_its_buckling_is_carried_on():
+    """The unloaded paper module buckles continuously at rho = L = 1 going down; rho set to
+    1e-10 past it (lambda_min / lambda_max = 2e-10, below the margin test) ends on a state
+    certified by the normal form: the simulator keeps it as stable (its classification
+    reads 'degenerate'), and the next command goes on from it to where one command from
+    the start goes.  Before, the certificate was dropped with the module's state: 'not a
+    stable equilibrium', and the next command failed ('the start state is not an
+    equilibrium')."""
+    start = ModuleParams.paper(1.3)
+    sim = Simulator([start], [[0.0, 0.0]], [ModuleLimits(0.05, 1.95)], **UNBOUNDED)
+    outcome = finished(sim, sim.command_rhos({0: 1.0 - 1e-10}, 0))
+    assert outcome.status == 'ok' and len(outcome.of_type(Passage)) == 1
+    assert sim.stable and sim.state.certificate and not verified_minimum(sim)
+    assert sim.status(0).level != 'error'
+    outcome = finished(sim, sim.command_rhos({0: 0.5}, 0))
+    assert outcome.status == 'ok' and not outcome.of_type(TrackingFailure)
+    assert sim.stable and verified_minimum(sim) and not sim.state.certificate
+    expected = track_module(start, ModuleParams.paper(0.5), [0.0, 0.0])     # one command
     np.testing.assert_allclose(sim.state.theta, expected.final.theta, atol=1e-9)
 
 

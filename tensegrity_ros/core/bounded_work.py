@@ -15,6 +15,12 @@ paused by the checkpoints.  Python has no stackful coroutine in its standard lib
 and the check points lie deep in solver loops, hence the thread.
 
 :func:`checkpoint` is free to call anywhere: outside a job it does nothing.
+
+A :class:`Budget` bounds the work inside a ``with`` block the same way, but gives up
+instead of pausing: the first checkpoint past its deadline ends the block (the tracker's
+own ``TrackerSettings.time_budget``: the caller then reports the last verified state).
+It nests inside a job (the job's check runs first, and may pause there) and inside
+another budget.
 """
 from __future__ import annotations
 
@@ -133,3 +139,48 @@ class Job:
             self._go.acquire()
         if self._cancelled:
             raise OutOfTime
+
+
+class BudgetSpent(BaseException):
+    """Raised at the first checkpoint past a :class:`Budget`'s deadline; ends its block.
+
+    A ``BaseException`` for the reason :class:`OutOfTime` is one; it names its budget,
+    so only that budget's block stops there."""
+
+    def __init__(self, budget):
+        super().__init__(budget)
+        self.budget = budget
+
+
+class Budget:
+    """``with Budget(seconds, clock):`` -- the block ends at its first checkpoint past
+    ``seconds`` (in ``clock`` units) from entry; afterwards ``spent`` says whether it did.
+
+    ``seconds=None``: no limit (nothing is installed).  Work between two checkpoints is
+    the granularity: the block may overrun its deadline by that much, never more."""
+
+    def __init__(self, seconds, clock):
+        self.seconds, self._clock = seconds, clock
+        self.spent = False
+        self._previous = self._deadline = None
+
+    def __enter__(self):
+        if self.seconds is not None:
+            self._previous = getattr(_local, 'hook', None)
+            self._deadline = self._clock() + self.seconds
+            _local.hook = self._check
+        return self
+
+    def __exit__(self, kind, error, traceback):
+        if self.seconds is not None:
+            _local.hook = self._previous
+        if isinstance(error, BudgetSpent) and error.budget is self:
+            self.spent = True
+            return True             # the block ends here; the caller reads ``spent``
+        return False
+
+    def _check(self):
+        if self._previous is not None:
+            self._previous()        # an enclosing job's check first (it may pause)
+        if self._clock() > self._deadline:
+            raise BudgetSpent(self)

@@ -14,6 +14,7 @@ import numpy as np
 
 from .module import ModuleParams
 from .tolerances import DEGENERACY_TOL      # (re-exported: equilibria, batch_solver)
+from .tolerances import verified_minimum
 
 KIND_MINIMUM = 'minimum'
 KIND_SADDLE = 'saddle'
@@ -23,7 +24,11 @@ KIND_DEGENERATE = 'degenerate'
 
 @dataclass(frozen=True)
 class Equilibrium:
-    """One equilibrium of a module: angles (rad), Hessian eigenvalues (ascending)."""
+    """One equilibrium of a module: angles (rad), Hessian eigenvalues (ascending).
+
+    ``certificate``: a tracked state's :attr:`.continuation.Track.certificate` (non-empty
+    where it ends so close past a passed branch point that it is shown a minimum by the
+    normal form; its classification then reads 'degenerate', yet it is ``stable``)."""
 
     theta1: float
     theta2: float
@@ -31,6 +36,7 @@ class Equilibrium:
     energy: float
     actuator_force: float
     residual: float
+    certificate: str = ''
 
     @property
     def theta(self):
@@ -47,7 +53,8 @@ class Equilibrium:
 
     @property
     def stable(self):
-        return self.kind == KIND_MINIMUM
+        return self.kind == KIND_MINIMUM or (
+            bool(self.certificate) and verified_minimum(self.eigenvalues, self.certificate))
 
 
 @dataclass(frozen=True)

@@ -27,19 +27,21 @@ Tolerances follow the local stiffness scale, so every magnitude works.
 A reported jump lands on a minimum at the event's own s (the frozen landing followed
 back to s*).  A command ending within ~1e-6 in s past a passed branch point, where
 the buckled minimum's lambda_min is below the margin test, ends on a state certified
-by the pitchfork's normal form instead (``Track.certificate``).
+by the pitchfork's normal form instead (``Track.certificate``); from such a state a
+command back towards the branch point is solved by that normal form too.
+``TrackerSettings.time_budget`` bounds a whole command, nested work included.
 """
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from typing import Protocol
+from dataclasses import dataclass, field, replace
+from typing import Callable, Protocol
 
 import numpy as np
 from scipy.integrate import LSODA
 
-from .bounded_work import checkpoint
+from .bounded_work import Budget, checkpoint
 from .tolerances import DEFINITENESS_TOL
 
 FOLD = 'fold'
@@ -123,8 +125,13 @@ class TrackerSettings:
     #: Past a linkage limit the minimum is looked for this far on (in s, and 100 times
     #: closer, to see that it closes in: see ``_Tracker.through_linkage_limit``).
     linkage_offset: float = 1e-6
-    #: Wall-clock seconds one command may take before it gives up (None: no limit).
+    #: Seconds one command may take before it gives up (None: no limit): checked at every
+    #: check point (:func:`.bounded_work.checkpoint`), nested landings, followers and
+    #: bisections included, so a command ends at most one check point's work past it,
+    #: on its last verified state (status 'failed').
     time_budget: float | None = None
+    #: The clock ``time_budget`` is read on (tests inject a counting clock).
+    clock: Callable[[], float] = time.perf_counter
 
 
 @dataclass(frozen=True)
@@ -246,8 +253,12 @@ class _Tracker:
         #: Stop (failed) at a critical point instead of landing: a landing's own
         #: minimum followed back to its event (nested landings there could recurse).
         self.stop_at_events = False
-        self.deadline = (None if settings.time_budget is None
-                         else time.perf_counter() + settings.time_budget)
+        #: From a pitchfork-certified state, solve a command's end short of its branch
+        #: point by the normal form (off in the tracker that follows the branch away for it).
+        self.normal_form_end = True
+        self.normal_form_tried = None   # the s it was tried at (once per state)
+        #: The last verified state of :meth:`run` (what a spent time budget returns).
+        self.kept = None
         weights = getattr(problem, 'state_weights', None)
         self.weights = None if weights is None else np.asarray(weights, dtype=float)
 
@@ -343,15 +354,13 @@ class _Tracker:
         elif not (self.certificate and self.soft_minimum(eigenvalues)):
             raise TrackingError('the start state is not a stable equilibrium')
         events = []
+        self.keep(y, s, eigenvalues, events)
         ds, rate = 1.0, None
         while s < s_end:
             self.steps += 1
-            checkpoint()                # a bounded caller may pause here (bounded_work)
+            checkpoint()                # a bounded caller may pause (or give up) here
             if self.steps > cfg.max_steps:
                 return self.result(y, s, eigenvalues, events, 'failed', 'too many steps')
-            if self.out_of_time():
-                return self.result(y, s, eigenvalues, events, 'failed',
-                                   f'time budget of {cfg.time_budget:g} s used up at s={s!r}')
             try:
                 tangent = self.tangent(y, s)
             except np.linalg.LinAlgError:
@@ -368,8 +377,15 @@ class _Tracker:
                 self.certificate = PITCHFORK_CERTIFIED if certified else ''
                 rate = self.last_rate = (eig1[0] - eigenvalues[0]) / ds
                 y, s, eigenvalues = y1, s + ds, eig1
+                self.keep(y, s, eigenvalues, events)
                 self.rescale(eigenvalues)
                 ds *= 2.0
+                continue
+            ended = self.toward_branch_point(y, s, s_end)      # certified y only
+            if ended is not None:
+                y, s = ended
+                eigenvalues = self.eigenvalues(y, s)
+                self.keep(y, s, eigenvalues, events)
                 continue
             found = None
             if reason == 'indefinite':
@@ -382,6 +398,7 @@ class _Tracker:
                     _, y1, s1, eig1 = arc
                     self.last_rate = (eig1[0] - eigenvalues[0]) / (s1 - s)
                     y, s, eigenvalues, rate = y1, s1, eig1, None
+                    self.keep(y, s, eigenvalues, events)
                     self.rescale(eigenvalues)
                     continue
                 if arc is not None:
@@ -409,6 +426,7 @@ class _Tracker:
                 if event is not None:
                     events.append(event)
                 eigenvalues = self.eigenvalues(y, s)
+                self.keep(y, s, eigenvalues, events)
                 self.rescale(eigenvalues)
                 ds, rate = 1.0, None
                 continue
@@ -465,8 +483,17 @@ class _Tracker:
             self.base_scale = max(local, 1e-300)
         self.scale = local if 0.0 < local < self.base_scale else self.base_scale
 
-    def out_of_time(self):
-        return self.deadline is not None and time.perf_counter() > self.deadline
+    def keep(self, y, s, eigenvalues, events):
+        """Note a verified state of :meth:`run` (with its certificate and the events
+        before it): where the time budget runs out, the command ends there."""
+        self.kept = (y, s, eigenvalues, tuple(events), self.certificate)
+
+    def out_of_budget(self):
+        """The result of a run whose time budget ran out: its last verified state."""
+        y, s, eigenvalues, events, self.certificate = self.kept
+        return self.result(y, s, eigenvalues, events, 'failed',
+                           f'time budget of {self.settings.time_budget:g} s used up '
+                           f'(last verified state at s={float(s)!r})')
 
     def result(self, y, s, eigenvalues, events, status='ok', message=''):
         return Track(state=y, s=s, eigenvalues=np.asarray(eigenvalues), events=tuple(events),
@@ -822,6 +849,64 @@ class _Tracker:
             return found
         return None
 
+    def toward_branch_point(self, y, s, s_end):
+        """From a state certified by a passed pitchfork's normal form (its buckled branch
+        within ~1e-6 in s past the branch point), where the command runs back towards the
+        branch point and ends short of it: (state at s_end, s_end); else ``None``.  Tried
+        where a step from such a state is rejected, once per state.
+
+        Steps cannot get there: Newton pins such a state along the soft mode only to ~1e-6
+        (lambda_min / lambda_max ~ 1e-11 at 1e-9 past on the N = 3 neck), above the
+        corrector's slack, so every natural step is 'far'; and [F_y F_s] is rank-deficient
+        at a branch point, so arclength steps fail too.  So the branch point is found from
+        the normal form instead: the buckled branch is followed the other way (away from
+        the branch point, the path extended backwards) until lambda_min passes the margin
+        test 100-fold; lambda_min's linear law through both states gives s*, the square
+        root law y*, and :meth:`buckled_at` solves the end state from the far one.  (Two
+        far states would avoid y's noise, but lambda_min's law is linear only to ~1e-4
+        that far, which puts s* off by more.)"""
+        if not (self.certificate and self.normal_form_end and s < s_end
+                and self.normal_form_tried != s):
+            return None
+        self.normal_form_tried = s
+        certificate, self.certificate = self.certificate, ''
+        lam, found = self.eigenvalues(y, s)[0], None
+        far = self.away_from_branch_point(y, s, s_end - s, certificate)
+        if far is not None:
+            s_far, far_state, far_eigenvalues = far
+            rate = (far_eigenvalues[0] - lam) / (s_far - s)
+            s_star = s - lam / rate if rate < 0.0 else -math.inf
+            if s_end < s_star:
+                ratio = math.sqrt((s_star - s) / (s_star - s_far))     # of y's amplitude
+                y_star = (y - ratio * far_state) / (1.0 - ratio)
+                found = self.buckled_at(s_star, y_star, far_state, s_far, s_end)
+        if found is None:
+            self.certificate = certificate
+            return None
+        return found, s_end
+
+    def away_from_branch_point(self, y, s, length, certificate):
+        """(s, state, eigenvalues) on the buckled branch through the certified ``y`` at s,
+        followed backwards along the path by 1, 10 .. 1e7 times ``length`` until lambda_min
+        passes the margin test 100-fold, or ``None``.  A short one may fail: a state that
+        close to the branch point is known along the soft mode only to ~1e-6, so steps of
+        a few 1e-12 in s are 'far' however short."""
+        margin = 100.0 * self.settings.definiteness_tol
+        for extent in length * 10.0 ** np.arange(8):
+            if not _admissible(self.problem, s - extent):
+                return None
+            # (min_step: where its steps fail, give up after ~20 halvings, not 40)
+            away = _Tracker(_Segment(self.problem, s, s - extent),
+                            replace(self.settings, min_step=1e-6))
+            away.normal_form_end = False
+            away.stop_at_events = True      # a critical point on the way: not this branch
+            far = away.run(y, certificate=certificate)
+            if far.status != 'ok' or far.events or far.passages:
+                continue                # too short to leave the noise (or the wrong way)
+            if far.eigenvalues[0] > margin * max(abs(far.eigenvalues[-1]), self.scale * 1e-3):
+                return s - extent, far.state, far.eigenvalues
+        return None
+
     def pitchfork_certified(self, eigenvalues, far, fraction):
         """Whether a buckled state a ``fraction`` of the way (in s) from a supercritical
         branch point to a verified buckled minimum (eigenvalues ``far``, with a 100x
@@ -973,7 +1058,7 @@ class _Tracker:
 
         def velocity(_t, v):
             budget[0] -= 1
-            if budget[0] < 0 or (budget[0] % 64 == 0 and self.out_of_time()):
+            if budget[0] < 0:
                 raise _FlowBudgetExceeded
             if budget[0] % 8 == 0:  # inside a solver step too: a neck's takes ~30
                 checkpoint()        # evaluations (scipy >= 1.17's LSODA is re-entrant)
@@ -1125,8 +1210,38 @@ def track(problem: PathProblem, y0, settings: TrackerSettings = TrackerSettings(
     Raises :class:`TrackingError` if ``y0`` is not (close to) a stable
     equilibrium at s = 0; every other outcome is reported in the result.
     ``certificate``: the :attr:`Track.certificate` ``y0`` was verified with, if any.
+    Where ``settings.time_budget`` runs out, the result is the last verified state
+    (status 'failed', the reason in ``message``).
     """
-    return _Tracker(problem, settings).run(np.array(y0, dtype=float), certificate=certificate)
+    tracker = _Tracker(problem, settings)
+    y0 = np.array(y0, dtype=float)
+    if settings.time_budget is None:    # (the Budget's with-block costs ~0.6 us)
+        return tracker.run(y0, certificate=certificate)
+    with Budget(settings.time_budget, settings.clock):
+        return tracker.run(y0, certificate=certificate)
+    return tracker.out_of_budget()      # reached only where the budget ran out
+
+
+def track_settled(problem: PathProblem, y0, settings: TrackerSettings = TrackerSettings(),
+                  certificate='') -> Track:
+    """:func:`track` from ``y0``, or, where ``y0`` is not a stable equilibrium at s = 0,
+    from where the mechanism released there settles (:func:`settle`, from ``y0``
+    projected); the settling and the tracking share one ``settings.time_budget``."""
+    started = None if settings.time_budget is None else settings.clock()
+
+    def left():
+        """``settings`` with what is left of the time budget."""
+        if started is None:
+            return settings
+        spent = settings.clock() - started
+        return replace(settings, time_budget=max(settings.time_budget - spent, 0.0))
+
+    try:
+        return track(problem, y0, settings, certificate)
+    except TrackingError:
+        pass
+    y0 = settle(problem, problem.project(np.array(y0, dtype=float), 0.0), 0.0, left())
+    return track(problem, y0, left())
 
 
 def settle(problem: PathProblem, y0, s=0.0, settings: TrackerSettings = TrackerSettings()):
@@ -1135,9 +1250,17 @@ def settle(problem: PathProblem, y0, s=0.0, settings: TrackerSettings = TrackerS
     Returns the verified stable state, or raises :class:`TrackingError`.  A start
     on a saddle's stable set is pushed off along the unstable mode (both ways;
     the lower-energy landing wins) so that the answer is always a minimum.
+    ``settings.time_budget`` bounds it too (running out raises TrackingError).
     """
+    with Budget(settings.time_budget, settings.clock):
+        return _settle(problem, np.array(y0, dtype=float), s, settings)
+    raise TrackingError(f'time budget of {settings.time_budget:g} s used up before the '
+                        f'mechanism came to rest')
+
+
+def _settle(problem, y0, s, settings):
+    """:func:`settle` without its time budget."""
     tracker = _Tracker(problem, settings)
-    y0 = np.array(y0, dtype=float)
     eigenvalues, modes = problem.stability(y0, s)
     tracker.scale = max(float(np.max(np.abs(eigenvalues))), 1e-300)   # any start, not only a minimum
     y = tracker.newton(y0, s) if tracker.residual_ok(y0, s) else None

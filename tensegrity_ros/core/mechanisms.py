@@ -89,7 +89,8 @@ class OneModule:
         return settle(modules[0], thetas[0])
 
     def track(self, start, end, state):
-        track = track_module(start[0], end[0], state.theta)
+        track = track_module(start[0], end[0], state.theta,
+                             certificate=getattr(state, 'certificate', ''))
         jumps = [(j.kind, j.s, (j.params,), np.array([j.from_theta]), np.array([j.to_theta]),
                   j.ambiguous) for j in track.jumps]
         passages = tuple((params,) for params in track.passages)

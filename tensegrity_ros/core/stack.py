@@ -1066,11 +1066,8 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
         final = _end_record(path, *quick)
         keep_final_point(final, path, quick[4])
         return StackTrack(final=final, end=end, jumps=(), steps=1)
-    try:
-        result = _continuation.track(path, y0, settings, known.certificate if known else '')
-    except _continuation.TrackingError:
-        y0 = _continuation.settle(path, path.project(y0, 0.0), 0.0, settings)
-        result = _continuation.track(path, y0, settings)
+    result = _continuation.track_settled(path, y0, settings,
+                                         known.certificate if known else '')
     jumps = tuple(StackJump(kind=e.kind, s=e.s, stack=path.params(e.s),
                             from_theta=path.angles(e.state, e.s),
                             to_theta=path.angles(e.landing, e.landing_s), ambiguous=e.ambiguous,

@@ -21,7 +21,11 @@ passed pitchfork, or before one) lambda_min grows linearly from zero and falls b
 it (9.4e-12 of lambda_max 1e-9 past, N = 3 neck).  There a state is a minimum if
 lambda_min is positive and matches that linear law to 25 % (rounding noise cannot);
 the tracker then says so (:attr:`.continuation.Track.certificate`), and
-:attr:`.stack.StackEquilibrium.stable` and the simulator accept it.
+:attr:`.stack.StackEquilibrium.stable`, a tracked module's
+:attr:`.classification.Equilibrium.stable` (the unloaded paper module 1e-10 in rho past
+rho = L: 2e-10 of lambda_max) and the simulator accept it.  A certified state is also a
+start the tracker takes, and a command from it back towards the branch point is solved
+by the normal form (:meth:`.continuation._Tracker.toward_branch_point`).
 """
 
 #: The tracker's (and a tracked neck state's) definiteness: lambda_min > this * |lambda_max|.

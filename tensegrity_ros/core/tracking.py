@@ -8,7 +8,7 @@ reports every jump (fold or branch point) with where it lands.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -244,22 +244,22 @@ def track_module(start: ModuleParams, end: ModuleParams, theta,
 
     If ``theta`` is not a stable equilibrium at ``start`` the mechanism first
     settles (see :func:`settle`).  Every jump on the way is in ``jumps``.
+    ``settings.time_budget`` bounds the whole call, settling included.
     ``certificate``: the previous command's :attr:`ModuleTrack.certificate` where
-    ``theta`` is its final state.
+    ``theta`` is its final state (also on its ``final``).
     """
     theta = _checked_theta(theta)
     path = ModulePath(start, end)
-    try:
-        result = _continuation.track(path, theta, settings, certificate)
-    except _continuation.TrackingError:
-        theta = _continuation.settle(path, theta)
-        result = _continuation.track(path, theta, settings)
+    result = _continuation.track_settled(path, theta, settings, certificate)
     jumps = tuple(ModuleJump(kind=e.kind, s=e.s, params=path.params(e.s),
                              from_theta=_wrap(e.state), to_theta=_wrap(e.landing),
                              ambiguous=e.ambiguous, landing_params=path.params(e.landing_s))
                   for e in result.events)
     reached = end if result.s == 1.0 else path.params(result.s)
-    return ModuleTrack(final=equilibrium_at(reached, result.state), end=reached, jumps=jumps,
+    final = equilibrium_at(reached, result.state)
+    if result.certificate:              # (rare: a replace costs ~2 us per command)
+        final = replace(final, certificate=result.certificate)
+    return ModuleTrack(final=final, end=reached, jumps=jumps,
                        status=result.status, message=result.message, steps=result.steps,
                        passages=tuple(path.params(s) for s, _ in result.passages),
                        certificate=result.certificate)

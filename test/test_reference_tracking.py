@@ -566,17 +566,19 @@ def test_n3_nearly_symmetric_neck_head_load_folds_where_the_tracker_says():
     node: it buckles continuously (s ~ 0.1713, no event) and folds at s = 0.2921059.
     Past the fold module 0 swings through its flat change point (equal rods and chords:
     a parallelogram linkage, whose parallelogram and anti-parallelogram modes cross
-    there); two half-branches leave it downhill.  The reference takes the lower-energy
-    one (U = 253.63 J), the tracker the parallelogram one, module 0 at (-pi/2, -pi/2)
-    (U = 256.90 J).  The released mechanism rests on the tracker's (stiff-spring node
-    model, node drag or pivot damping: test_perfect_chord_ramp_landing.py), so the
-    reference's choice is the wrong one; here it is checked only that the tracker's
-    landing is one of the reference's ways out, and from it on both agree to the end."""
+    there); two half-branches leave it downhill.  The released mechanism takes the
+    parallelogram one, module 0 at (-pi/2, -pi/2) (U = 256.90 J; stiff-spring node model,
+    node drag or pivot damping: test_perfect_chord_ramp_landing.py), the half-branch of
+    steepest descent, which the reference now takes; it used to take the one with the
+    lower landing (U = 253.63 J), kept as its alternative.  The reference must land on
+    the tracker's state itself, not only on one of its ways out."""
     start, end = paper_neck(3, 0.6, 0.0, dict(ka=100.0000001)), \
         paper_neck(3, 0.6, -40.0, dict(ka=100.0000001))
     got, ref = compare_neck(start, end, settle_stack(start, upright(3, 0.6)).theta)
     (mine,), (theirs,) = got.jumps, ref.jumps
     assert mine.kind == theirs.kind == 'fold'
+    assert angle_distance(np.ravel(mine.to_theta), theirs.landing) <= LANDING_TOL, \
+        (mine.to_theta, theirs.landing)
     assert theirs.alternatives                  # the change point's other way out
 
 

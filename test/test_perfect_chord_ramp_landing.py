@@ -8,8 +8,8 @@ module 0 hanging as a rectangle (-pi/2, -pi/2) and modules 1-2 tilted, U = 289.3
 test/reference_paths.py used to land on a lower minimum (U = 262.43 J, every module a
 crossed trapezoid hanging down), which it picked at module 0's change point (flat: its
 parallelogram and anti-parallelogram branches cross) as the way out whose landing has
-the lowest energy (it now takes the steepest half-branch and lands on the mirror
-image of the tracker's landing).  An overdamped mechanism does not choose by the energy
+the lowest energy (it now takes the steepest half-branch and lands on the tracker's
+landing or its mirror image).  An overdamped mechanism does not choose by the energy
 of where a way leads: the released flows below pass module 0's change point (0, pi)
 coming in on the anti-parallelogram branch and leave on the parallelogram one, the
 half-branch of steepest descent there (-dU per unit length 7.07 against 1.64 J/rad with pivot damping,

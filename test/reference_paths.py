@@ -651,7 +651,8 @@ class NoRest(RuntimeError):
 class Rest:
     state: np.ndarray
     ambiguous: bool = False
-    #: Where the other ways out of a saddle or a change point land (lower energy wins).
+    #: Where the other ways out of a saddle (the lower energy wins) or of a change point
+    #: (the steepest half-branch wins) land.
     alternatives: list = field(default_factory=list)
 
 
@@ -742,10 +743,20 @@ def _closest_to_a_change_point(system, base, sol, s, start):
 
 
 def _through_change_point(system, y, s, push_offs):
-    """The flow reached a module's change point: it goes on along the half-branches on
-    which the mechanism moves away from the crossing (the velocity there points out);
-    the lower-energy landing wins, a disagreement is recorded as ``ambiguous``.  None
-    if y is not at a crossing (a sharply curving branch next to one: flow on)."""
+    """The flow reached a module's change point: it goes on along the half-branch of
+    steepest descent (:func:`descent_rate`) among those on which the mechanism moves away
+    from the crossing (the velocity there points out); the other half-branches' landings
+    are kept as ``alternatives`` (and the rest marked ``ambiguous``).  None if y is not at
+    a crossing (a sharply curving branch next to one: flow on).
+
+    Why steepest descent and not the lowest landing: the released mechanism does not
+    choose by the energy of where a way leads.  A stiff-spring node model, where nothing
+    degenerates at a change point (test/node_spring_flow.py), flows through module 0's
+    change point onto the steepest half-branch, node drag and pivot damping alike
+    (test/test_perfect_chord_ramp_landing.py); the lower-landing rule took the other one.
+    Checked on two change points: the nearly symmetric N = 3 head-load fold
+    (test_reference_tracking.py::test_n3_nearly_symmetric_neck_head_load_folds_where_the_
+    tracker_says) and the perfect N = 3 chord ramp (its branch point, PERFECT_NECKS)."""
     found = system.change_point_branches(y, s)
     if found is None:
         return None
@@ -753,10 +764,20 @@ def _through_change_point(system, y, s, push_offs):
     leaving = [x for x in states if float(system.velocity(x, s) @ (x - crossing)) > 0]
     if not leaving:
         raise NoRest(f'the flow rests on a change point at s={s!r} (not certified)')
+    rates = [descent_rate(system, crossing, x, s) for x in leaving]
     landings = [flow_to_rest(system, x, s, push_offs) for x in leaving]
-    best = min(landings, key=lambda r: system.energy(r.state, s))
+    best = landings[int(np.argmax(rates))]
     others = [r.state for r in landings if angle_distance(r.state, best.state) > 1e-6]
     return Rest(best.state, bool(others) or any(r.ambiguous for r in landings), others)
+
+
+def descent_rate(system, crossing, x, s):
+    """The energy drop per unit length from the crossing to x, a state a short way out
+    along one half-branch: (U(crossing) - U(x)) / |x - crossing|, the length in the
+    angles (the metric of this reference's gradient flow).  The flow released at the
+    crossing leaves along the half-branch where this is largest."""
+    length = float(np.linalg.norm(np.asarray(x) - np.asarray(crossing)))
+    return (system.energy(crossing, s) - system.energy(x, s)) / length
 
 
 def _push_off(system, star, mode, s, push_offs):

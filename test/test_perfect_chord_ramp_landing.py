@@ -5,15 +5,16 @@ Three perfect paper modules stacked upright, every chord 0.9 -> 0.2 under -5 N o
 top node.  At s* = 0.9472278 the state (modules 0-1 crossed and up, module 2 hanging)
 loses stability at a symmetry-breaking branch point and jumps.  The tracker lands with
 module 0 hanging as a rectangle (-pi/2, -pi/2) and modules 1-2 tilted, U = 289.32 J;
-test/reference_paths.py lands on a lower minimum (U = 262.43 J, every module a crossed
-trapezoid hanging down), which it picks at module 0's change point (flat: its
+test/reference_paths.py used to land on a lower minimum (U = 262.43 J, every module a
+crossed trapezoid hanging down), which it picked at module 0's change point (flat: its
 parallelogram and anti-parallelogram branches cross) as the way out whose landing has
-the lowest energy.  An overdamped mechanism does not choose by the energy of where a
-way leads: the released flows below pass module 0's change point (0, pi) coming in on
-the anti-parallelogram branch and leave on the parallelogram one, the half-branch of
-steepest descent there (-dU per unit length 7.07 against 1.64 J/rad with pivot damping,
+the lowest energy (it now takes the steepest half-branch and lands on the tracker's
+landing or its mirror image).  An overdamped mechanism does not choose by the energy
+of where a way leads: the released flows below pass module 0's change point (0, pi)
+coming in on the anti-parallelogram branch and leave on the parallelogram one, the
+half-branch of steepest descent there (-dU per unit length 7.07 against 1.64 J/rad with pivot damping,
 4.08 against 0.48 in the node metric; both leave downhill, so the reference's test
-"the velocity points out" keeps both and its energy rule picks the wrong one).
+"the velocity points out" keeps both and its old energy rule picked the wrong one).
 
 The check (test/node_spring_flow.py, sharing no code with either): the nodes are free
 points, the rods and chords stiff springs, so nothing degenerates at a change point.
@@ -152,7 +153,7 @@ def test_the_lower_energy_minimum_is_not_where_it_lands(jump):
     """The reference's landing (modules 0-1 reflected to hang down as crossed
     trapezoids, module 2 kept) is a strict minimum of lower energy: a minimum nearby
     the mechanism does not reach, so choosing a change point's way out by the energy of
-    its landing (reference_paths._through_change_point) is wrong here."""
+    its landing (reference_paths._through_change_point before session 7) is wrong here."""
     model = NodeSpringNeck(jump.stack.modules, STIFFNESS)
     reflected = np.asarray(jump.from_theta).copy()
     reflected[:2] *= -1.0
@@ -206,9 +207,9 @@ def test_the_head_load_fold_lands_where_the_released_mechanism_comes_to_rest(hea
     """Head load 0 -> -40 N: the neck buckles continuously, then folds at s = 0.2921059
     and module 0 swings through its change point.  Released at the critical state, the
     load frozen 1e-3 past, the mechanism comes to rest on the tracker's landing (module 0
-    a hanging rectangle, U = 256.896 J), not on the reference's lower-energy way out
-    (U = 253.630 J, module 0 at (-0.4726, -1.6082)): the flow makes that choice (node drag
-    and pivot damping alike), not a convention."""
+    a hanging rectangle, U = 256.896 J), not on the lower-energy way out the reference
+    used to take (U = 253.630 J, module 0 at (-0.4726, -1.6082)): the flow makes that
+    choice (node drag and pivot damping alike), not a convention."""
     jump = head_load_fold
     past = NodeSpringNeck(nearly_symmetric_head_load_neck(-40.0 * (jump.s + FREEZE)).modules,
                           STIFFNESS)

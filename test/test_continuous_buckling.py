@@ -154,3 +154,36 @@ def test_a_neck_command_from_just_past_its_passage_back_towards_it_ends_ok():
         assert (result.final.theta - passage.theta).ravel() @ (far - passage.theta).ravel() > 0
         deviation = on_the_square_root(result.final.theta, passage.theta, far, back_to)
         assert deviation < 0.25, (past, back_to, deviation)    # 0.067, 0.022, 0.14, 0.016 seen
+
+
+def test_a_neck_command_from_just_past_its_passage_back_through_it_ends_unbuckled():
+    """From the N = 3 neck's state certified 1e-9 past its passage, a command back through
+    it to 1e-10 .. 5e-10 before it ends ok, no jump, on the unbuckled minimum at the end
+    load, with the passage listed (at the branch point's load, to 1e-11 relative).  The
+    unbuckled minimum is the mirror-symmetric one (each module's two rod angles equal; the
+    start's differ by 6e-5 rad, the buckled branch's 1.9e-5 at 1e-10; to 2e-6: Newton pins
+    it along the soft mode only to ~1e-6): checked so, and against a command up from the
+    unloaded upright neck to the same end, which ends ok with no passage.  (A settle there
+    does not reach rest: lambda_min is ~5e-13 of lambda_max.)  Both ended 'failed' before:
+    every step from the start 'far', and the normal form handled only ends short of the
+    branch point; going up, s* is located ~1.5e-8 early and the buckled state found past
+    it could not be followed back to the end, before the true branch point."""
+    start = neck(3, 0.6, 1.0, 100.0, 0.0)
+    first = settle_stack(start, upright_guess(start.modules))
+    whole = track_stack(start, at_load(start, -10.0), first)
+    critical = whole.passages[0].stack.modules[-1].f3y
+    there = at_load(start, critical * (1.0 + 1e-9))
+    certified = track_stack(start, there, first).final
+    for before in (1e-10, 5e-10):
+        end = at_load(start, critical * (1.0 - before))
+        result = track_stack(there, end, certified)
+        assert result.status == 'ok', (before, result.message)
+        assert result.final.stable and result.jumps == () and len(result.passages) == 1
+        assert abs(result.passages[0].stack.modules[-1].f3y / critical - 1.0) < 1e-11
+        asymmetry = np.abs(result.final.theta[:, 0] - result.final.theta[:, 1])
+        assert np.max(np.abs(certified.theta[:, 0] - certified.theta[:, 1])) > 1e-5
+        assert np.max(asymmetry) < 2e-6, before
+        up = track_stack(start, end, first)
+        assert up.status == 'ok' and up.final.stable, (before, up.message)
+        assert up.jumps == () and up.passages == ()
+        assert np.max(np.abs(result.final.theta - up.final.theta)) < 2e-6, before

@@ -757,8 +757,10 @@ class _Tracker:
         if kind == BRANCH_POINT:
             buckled = self.buckled_minimum(s_star, y_star, s_end)
             if buckled is not None:             # supercritical: no jump, the state goes on
-                self.passages.append((s_star, y_star))
-                return (*buckled, None)
+                y_end, s_at, passed = buckled
+                if passed:
+                    self.passages.append((s_star, y_star))
+                return y_end, s_at, None
         offset = self.landing_offset(kind, y_star, s_star)
         s_land = s_star + offset
         if s_land > s_end and not _admissible(problem, s_land):
@@ -778,7 +780,8 @@ class _Tracker:
                                       landing=at_event, ambiguous=ambiguous)
 
     def buckled_minimum(self, s_star, y_star, s_end):
-        """The stable buckled state just past a supercritical branch point: (state, s) or ``None``.
+        """The stable buckled state just past a supercritical branch point: (state, s,
+        passed) or ``None``.
 
         At a branch point the bifurcated branch leaves along the critical mode psi
         with s - s* ~ a^2 at amplitude a.  It is found on the hyperplane
@@ -792,7 +795,10 @@ class _Tracker:
         pitchfork the one along +psi is taken, psi oriented so that its first
         clearly non-zero component is positive (a deterministic rule: the two
         sides have the same energy).  Past the end of the command the buckled
-        branch is followed back to it.
+        branch is followed back to it; where that crosses the branch point back (s* was
+        located a little early, ~1e-8 on the N = 3 neck, and the command ends before
+        the true one) it ends on the unbuckled branch and ``passed`` is False: the
+        branch point was not passed.
         """
         _, psi = self.critical(y_star, s_star)
         clear = np.flatnonzero(np.abs(psi) > 1e-3 * np.max(np.abs(psi)))
@@ -815,16 +821,16 @@ class _Tracker:
         else:
             return None
         if s <= s_end:
-            return y, s
+            return y, s, True
         near = self.buckled_at(s_star, y_star, y, s, s_end)
         if near is not None:
-            return near, s_end
+            return near, s_end, True
         back = _Tracker(_Segment(self.problem, s, s_end), self.settings).run(y)
         if back.status != 'ok' or back.events:
             raise TrackingError(f'the buckled state after the branch point at s={s_star!r} '
                                 f'could not be followed back to the end of the command')
         self.certificate = back.certificate
-        return back.state, s_end
+        return back.state, s_end, not back.passages
 
     def buckled_at(self, s_star, y_star, y, s, s_end):
         """The buckled minimum at s_end in (s*, s), from the one found at s: Newton from
@@ -876,14 +882,44 @@ class _Tracker:
             s_far, far_state, far_eigenvalues = far
             rate = (far_eigenvalues[0] - lam) / (s_far - s)
             s_star = s - lam / rate if rate < 0.0 else -math.inf
-            if s_end < s_star:
+            if s < s_star:
                 ratio = math.sqrt((s_star - s) / (s_star - s_far))     # of y's amplitude
                 y_star = (y - ratio * far_state) / (1.0 - ratio)
+            if s < s_star and s_end < s_star:
                 found = self.buckled_at(s_star, y_star, far_state, s_far, s_end)
+            elif s < s_star:
+                s_end = min(s_end, 2.0 * s_star - s)   # as far before s* as y was past it
+                found = self.unbuckled_at(s_star, y_star, rate, s_end)
         if found is None:
             self.certificate = certificate
             return None
         return found, s_end
+
+    def unbuckled_at(self, s_star, y_star, rate, s_end):
+        """The unbuckled minimum at s_end, just beyond the branch point (s*, y*) that a
+        command from the buckled branch crosses back: Newton from y*; ``None`` unless it
+        converges near y* to a verified minimum.  The passage is then listed, as one
+        crossing the other way lists it.
+
+        Verified by the margin test, or by the pitchfork's normal form: on the unbuckled
+        branch lambda_min = -c (s - s*) / 2 where the buckled one's is c (s - s*) (``rate``
+        = c, from the far state), so it is certified when positive and within 25 % of
+        that prediction, as in :meth:`pitchfork_certified`; the command then ends with
+        ``Track.certificate`` saying so (its steps away from s* see lambda_min grow)."""
+        found = self.newton(y_star, s_end)
+        if found is None or self.separation(found, y_star) > self.settings.passage_radius:
+            return None
+        eigenvalues = self.eigenvalues(found, s_end)
+        predicted = -0.5 * rate * (s_end - s_star)
+        if self.definite(eigenvalues):
+            self.certificate = ''
+        elif (self.soft_minimum(eigenvalues)
+              and abs(eigenvalues[0] - predicted) <= 0.25 * predicted):
+            self.certificate = PITCHFORK_CERTIFIED
+        else:
+            return None
+        self.passages.append((s_star, y_star))
+        return found
 
     def away_from_branch_point(self, y, s, length, certificate):
         """(s, state, eigenvalues) on the buckled branch through the certified ``y`` at s,

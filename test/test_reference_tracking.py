@@ -40,13 +40,13 @@ N = 2: 15 paths by default (all 12 chord ramps, ~1 s each, no event; head load w
 change point, 20-90 s each); N = 3 chord ramps: 3 paths by default (ka 1e-2, L2 1e-9,
 fx 1e-4, 30-100 s each); the issue's N = 3 neck (ka 100.0000001, head load): 1 path.
 Not run by default, and why: the other 30 N = 2 / N = 3 nearly symmetric paths
-(FULL_NECKS=1 runs all 48; CI time).  Run by hand: N = 2 head load ka 1e-9 passes; N = 3
-chord ramps (FULL_NECKS=1, by hand): all 12 pass (73-410 s each at load 3-5; 11 of 12
-passed on session 6's reference, where L2 1e-6 failed: NoRest, 200 flow legs at s =
+(FULL_NECKS=1 runs all 48; CI time).  Run by hand with FULL_NECKS=1 on the
+steepest-descent reference (load ~2): all 48 pass -- the 9 other N = 2 head-load paths
+18-36 s each, the 12 N = 3 head-load paths 23-41 s, the 9 other N = 3 chord ramps 32-100
+s (on session 6's reference L2 1e-6 had failed: NoRest, 200 flow legs at s =
 0.94873046875 just past the fold, 190 of them stopped at t = 0 on the flat event, see
-the next paragraph); the other N = 2 head-load and N = 3 head-load paths were not run;
-N = 5 necks (slower still); more random N = 2 / 3 necks (each costs as much as a nearly
-symmetric one).
+the next paragraph).  Not run: N = 5 necks (slower still); more random N = 2 / 3 necks
+(each costs as much as a nearly symmetric one).
 The N = 3 chord ramps' reference crashed (LinAlgError) or crawled for > 9 min: module
 1, a parallelogram linkage like every lower module of these necks, reached its flat
 change point unseen (its chord's gradient in its own angles vanished, but the full row

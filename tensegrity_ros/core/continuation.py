@@ -485,8 +485,10 @@ class _Tracker:
 
     def keep(self, y, s, eigenvalues, events):
         """Note a verified state of :meth:`run` (with its certificate and the events
-        before it): where the time budget runs out, the command ends there."""
-        self.kept = (y, s, eigenvalues, tuple(events), self.certificate)
+        before it): where the time budget runs out, the command ends there.  (Without a
+        budget nothing reads it: no copy on the small-step path.)"""
+        if self.settings.time_budget is not None:
+            self.kept = (y, s, eigenvalues, tuple(events), self.certificate)
 
     def out_of_budget(self):
         """The result of a run whose time budget ran out: its last verified state."""

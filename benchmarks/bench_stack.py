@@ -137,7 +137,7 @@ def floor(n=3):
     moved = stack.with_module(n - 1, rho=0.752)
     path = StackPath(stack, moved)
     y, y1 = state.state, track_stack(stack, moved, state).final.state
-    start = _start_point(path, y, state)
+    start, _ = _start_point(path, y, state)
     fresh = lambda: path.evaluate(y1, 1.0)
     point = tight(fresh)
 

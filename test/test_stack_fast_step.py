@@ -149,7 +149,7 @@ def test_the_kept_evaluation_is_the_fresh_one_at_the_next_start(n):
         path = StackPath(first, end)
         # the previous command computed its own s-rates on the kept point: they must go
         path.energy_s_at(record.__dict__[_KEPT][2])
-        start = _start_point(path, record.state, record)
+        start, _ = _start_point(path, record.state, record)
         assert (start is record.__dict__[_KEPT][2]) == kept
         fresh = StackPath(first, end).evaluate(record.state.copy(), 0.0)
         for name in ('residual_at', 'jacobian_at', 'eigenvalues_at', 'residual_s_at',

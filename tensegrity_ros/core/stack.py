@@ -1063,8 +1063,8 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
              and state_or_theta.parameters == start._bytes else None)
     quick = whole_command_step(path, y0, settings, known)
     if quick is not None:
-        final = _end_record(path, *quick)
-        keep_final_point(final, path, quick[4])
+        final = _end_record(path, *quick[:5])
+        keep_final_point(final, path, quick[4], quick[5])
         return StackTrack(final=final, end=end, jumps=(), steps=1)
     result = _continuation.track_settled(path, y0, settings,
                                          known.certificate if known else '')

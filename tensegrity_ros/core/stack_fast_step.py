@@ -7,6 +7,10 @@ takes that step with the tracker's own acceptance rules and nothing else:
 * the start state's evaluation (rods, forces, Hessian, constraint Jacobian) is the
   previous command's final one, kept on its record (:func:`keep_final_point`), so
   only what depends on the new command (dF/ds, dE/ds) is computed at s = 0;
+* the tangent is solved with the previous command's last Newton LU factors, kept with
+  it: a Jacobian at a point ~1e-6 from the start (the command's first Newton update),
+  so the tangent is off by ~1e-6 of itself and the prediction by ~1e-6 of the step,
+  far below the prediction's own error (~the step squared), which Newton removes;
 * every evaluation is a point held here (``path.evaluate``), never looked up again;
 * Newton factors the Jacobian once (at the prediction, made by the path's
   ``prediction_jacobian_at`` from one outer product, without the Hessian and constraint
@@ -49,27 +53,29 @@ def _inf_norm(v):
     return max(map(abs, v.tolist()), default=0.0)
 
 
-def keep_final_point(record, path, point):
-    """Keep ``point`` (the evaluation at ``record.state`` and the path's end) on the
-    record, so that the next command, which starts there, does not evaluate it again."""
-    record.__dict__[_KEPT] = (path.l_ref, path.f_ref, point)
+def keep_final_point(record, path, point, factors):
+    """Keep ``point`` (the evaluation at ``record.state`` and the path's end) and
+    ``factors`` (Newton's last LU factors) on the record, so that the next command, which
+    starts there, neither evaluates it again nor factors a Jacobian for its tangent."""
+    record.__dict__[_KEPT] = (path.l_ref, path.f_ref, point, factors)
 
 
 def _start_point(path, y, known):
-    """The evaluation at (y, 0): the one kept on ``known`` when it was made at the same
-    state and scales (its s-rates belong to another path and are dropped), else fresh."""
+    """(evaluation at (y, 0), LU factors or ``None``): the ones kept on ``known`` when
+    made at the same state and scales (the point's s-rates belong to another path and
+    are dropped), else a fresh evaluation and no factors."""
     kept = None if known is None else known.__dict__.get(_KEPT)
     if kept is not None and kept[0] == path.l_ref and kept[1] == path.f_ref:
         point = kept[2]
         if point.values is path.at(0.0) and (y is known.state or np.array_equal(known.state, y)):
             point.rates = None
-            return point
-    return path.evaluate(y, 0.0)
+            return point, kept[3]
+    return path.evaluate(y, 0.0), None
 
 
 def _newton(path, y, tol, iterations):
-    """The tracker's corrector at s = 1: (state, point, residual), state ``None`` unless
-    Newton converges and the residual ends within ``tol``.
+    """The tracker's corrector at s = 1: (state, point, residual, LU factors), state
+    ``None`` unless Newton converges and the residual ends within ``tol``.
 
     The Jacobian of the first iterate is kept (LU factors reused): on a small step the
     iterates move by ~1e-6, so the contraction stays fast; where it does not (an update
@@ -84,7 +90,7 @@ def _newton(path, y, tol, iterations):
     f = path.residual_at(point)
     lu, pivots, info = _dgetrf(path.prediction_jacobian_at(point))
     if info != 0:
-        return None, point, math.inf
+        return None, point, math.inf, None
     converged = False
     for _ in range(iterations):
         delta, _ = _dgetrs(lu, pivots, f)
@@ -107,13 +113,13 @@ def _newton(path, y, tol, iterations):
     values = f.tolist()
     residual = max(map(abs, values))
     if not math.isfinite(sum(values)):        # max() may pass over a NaN; a sum does not
-        return None, point, math.inf
-    return (y if converged and residual <= tol else None), point, residual
+        return None, point, math.inf, None
+    return (y if converged and residual <= tol else None), point, residual, (lu, pivots)
 
 
 def whole_command_step(path, y, settings, known=None):
     """The tracker's first step when it spans the whole command: (state, eigenvalues,
-    energy, residual, point) at s = 1, or ``None`` wherever the tracker would do
+    energy, residual, point, LU factors) at s = 1, or ``None`` wherever the tracker would do
     anything else.
 
     A small command is one continuation step, accepted by the tracker's own rules
@@ -132,7 +138,7 @@ def whole_command_step(path, y, settings, known=None):
     record of ``y`` when it was verified at the start parameters: its eigenvalues,
     residual and energy are those at s = 0."""
     cfg = settings
-    start = _start_point(path, y, known)
+    start, factors = _start_point(path, y, known)
     eigenvalues = path.eigenvalues_at(start) if known is None else known.eigenvalues
     scale = max(abs(eigenvalues[-1]), 1e-300)
     tol = cfg.residual_tol * scale
@@ -140,8 +146,11 @@ def whole_command_step(path, y, settings, known=None):
     residual0 = _inf_norm(path.residual_at(start)) if known is None else known.residual
     if not _continuation.positive_definite(eigenvalues, scale, cfg) or residual0 > tol:
         return None
-    _, _, backward, info = _dgesv(path.jacobian_at(start), path.residual_s_at(start))
-    if info != 0:                             # (backward = -tangent: no negation needed)
+    if factors is None:                       # (backward = -tangent: no negation needed)
+        _, _, backward, info = _dgesv(path.jacobian_at(start), path.residual_s_at(start))
+    else:
+        backward, info = _dgetrs(*factors, path.residual_s_at(start))
+    if info != 0:
         return None
     reach = _inf_norm(weights * backward)
     if not reach <= cfg.max_state_step:       # cheap early out: step_bound below says the same
@@ -149,7 +158,7 @@ def whole_command_step(path, y, settings, known=None):
     energy0 = path.energy_at(start) if known is None else known.energy
     energy_s0 = path.energy_s_at(start)
     predicted = y - backward
-    y1, end, residual = _newton(path, predicted, tol, cfg.newton_iterations)
+    y1, end, residual, factors = _newton(path, predicted, tol, cfg.newton_iterations)
     if y1 is None or not _continuation.near_prediction(_inf_norm(weights * (y1 - predicted)),
                                                        reach, 1.0, cfg):
         return None
@@ -166,4 +175,4 @@ def whole_command_step(path, y, settings, known=None):
                                           y, 0.0, -backward, eigenvalues[0])
         if not _continuation.step_bound(reach, eigenvalues[0], rate, cfg) >= 1.0:
             return None
-    return y1, eigenvalues1, energy1, residual, end
+    return y1, eigenvalues1, energy1, residual, end, factors

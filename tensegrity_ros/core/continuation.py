@@ -390,6 +390,19 @@ class _Tracker:
             found = None
             if reason == 'indefinite':
                 found = self.crossing_on_path(y, s, tangent, s + ds)
+                if ((found is None or found[1] > s_end)
+                        and self.on_linear_law(eigenvalues, eig1, rate, ds)):
+                    # lambda_min falls linearly to a branch point the command runs
+                    # through, and no crossing is found on the path: the buckled branch
+                    # ends there (a verified state not yet certified, e.g. the module
+                    # 1e-9 .. 5e-10 in rho past rho = L going back up)
+                    ended = self.toward_branch_point(y, s, s_end, near=True)
+                    if ended is not None:
+                        y, s = ended
+                        eigenvalues = self.eigenvalues(y, s)
+                        self.keep(y, s, eigenvalues, events)
+                        ds, rate = 1.0, None
+                        continue
             if found is None:           # rejected, or no crossing on the natural path
                 arc = self.arc_step(y, s, tangent, ds)
                 if arc is not None and arc[0] == 'regular' and arc[2] > s_end:
@@ -468,8 +481,16 @@ class _Tracker:
         rounding noise, ~1e-16 of lambda_max, cannot match the law.  Only where the law
         keeps lambda_min positive up to the command's end (``remaining`` in s): a command
         through the branch point is left to the event's localisation, as before."""
-        if not (rate is not None and rate < 0.0 and self.soft_minimum(eigenvalues)
-                and previous[0] + rate * remaining > 0.0):
+        return bool(rate is not None and previous[0] + rate * remaining > 0.0
+                    and self.on_linear_law(previous, eigenvalues, rate, ds))
+
+    def on_linear_law(self, previous, eigenvalues, rate, ds):
+        """A step's end is a minimum whose lambda_min, positive, falls as the linear law
+        of a simple branch point predicts it (within 25 %) from the verified state before
+        (eigenvalues ``previous``) and the rate over the step before that (see
+        :meth:`linear_approach`)."""
+        if not (rate is not None and rate < 0.0 and eigenvalues is not None
+                and self.soft_minimum(eigenvalues)):
             return False
         predicted = previous[0] + rate * ds
         return bool(predicted > 0.0 and abs(eigenvalues[0] - predicted) <= 0.25 * predicted)
@@ -857,7 +878,7 @@ class _Tracker:
             return found
         return None
 
-    def toward_branch_point(self, y, s, s_end):
+    def toward_branch_point(self, y, s, s_end, near=False):
         """From a state certified by a passed pitchfork's normal form (its buckled branch
         within ~1e-6 in s past the branch point), where the command runs back towards the
         branch point and ends short of it: (state at s_end, s_end); else ``None``.  Tried
@@ -872,8 +893,10 @@ class _Tracker:
         test 100-fold; lambda_min's linear law through both states gives s*, the square
         root law y*, and :meth:`buckled_at` solves the end state from the far one.  (Two
         far states would avoid y's noise, but lambda_min's law is linear only to ~1e-4
-        that far, which puts s* off by more.)"""
-        if not (self.certificate and self.normal_form_end and s < s_end
+        that far, which puts s* off by more.)  ``near``: tried from a state verified by
+        the margin test too, where a step towards the branch point ended below the margin
+        on lambda_min's linear law (see where :meth:`run` calls it so)."""
+        if not ((self.certificate or near) and self.normal_form_end and s < s_end
                 and self.normal_form_tried != s):
             return None
         self.normal_form_tried = s

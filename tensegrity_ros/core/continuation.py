@@ -48,6 +48,14 @@ FOLD = 'fold'
 BRANCH_POINT = 'branch_point'
 #: A final state certified by a passed pitchfork's normal form (see ``_Tracker.buckled_at``).
 PITCHFORK_CERTIFIED = 'pitchfork_normal_form'
+#: Newton's contraction test on a buckled branch followed away from its branch point
+#: (``_Tracker.away_from_branch_point``): in that nearly cubic valley Newton converges
+#: linearly, by 2/3 an iterate (x - x^3 / (3 x^2)), so the usual 1/2 stops it at a state
+#: up to 2x off the minimum whose residual already passes the tolerance (the unloaded
+#: module 1.5e-8 in rho past its branch point: 3.5e-4 rad for 1.76e-4; then 180 false
+#: jumps).  Not everywhere: it made the N = 3 neck's command up to 1e-10 before its
+#: branch point list a false passage 7e-8 early.
+PITCHFORK_CONTRACTION = 0.75
 
 
 class PathProblem(Protocol):
@@ -250,6 +258,8 @@ class _Tracker:
         self.base_scale = None    # the stability scale at the start
         self.passages = []        # (s, state) of the branch points passed continuously
         self.certificate = ''     # how the final state's definiteness was shown (Track)
+        #: Newton's contraction test (see :meth:`newton`)
+        self.contraction = 0.5
         #: Stop (failed) at a critical point instead of landing: a landing's own
         #: minimum followed back to its event (nested landings there could recurse).
         self.stop_at_events = False
@@ -279,8 +289,12 @@ class _Tracker:
         It iterates to rounding level, not just below the acceptance tolerance:
         near a critical point a residual r leaves an error r / lambda_min along
         the soft mode, which is what the stability margin is computed from.
+        Contracting: each update at most ``self.contraction`` of the one before (1/2;
+        the tracker that follows a buckled branch away from its branch point allows
+        :data:`PITCHFORK_CONTRACTION`).
         """
         tol = self.settings.residual_tol * self.scale
+        contraction = self.contraction
         previous = math.inf
         f = self.problem.residual(y, s)
         for _ in range(self.settings.newton_iterations):
@@ -289,7 +303,7 @@ class _Tracker:
             except np.linalg.LinAlgError:
                 break
             size = _inf_norm(delta)
-            if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
+            if not math.isfinite(size) or size > contraction * previous + 1e-15:
                 break                                   # no longer contracting
             y = y - delta
             f = self.problem.residual(y, s)
@@ -961,6 +975,7 @@ class _Tracker:
                             replace(self.settings, min_step=1e-6))
             away.normal_form_end = False
             away.stop_at_events = True      # a critical point on the way: not this branch
+            away.contraction = PITCHFORK_CONTRACTION    # its steps are in the cubic valley
             far = away.run(y, certificate=certificate)
             if far.status != 'ok' or far.events or far.passages:
                 continue                # too short to leave the noise (or the wrong way)

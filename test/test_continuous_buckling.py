@@ -330,3 +330,35 @@ def test_a_module_command_from_just_past_its_passage_back_towards_it_ends_ok():
             exact = np.arccos(end.rho)
             deviation = np.max(np.abs(result.final.theta - exact))
             assert deviation < 1e-10, (past, back_to, deviation)
+
+
+def test_a_tracked_module_state_verified_by_the_margin_test_reads_stable():
+    """Within ~1e-8 in rho of the unloaded paper module's branch point (rho = 1) the upright
+    state's lambda_min / lambda_max (DESIGN.md's Hessian: 2 k (rho - 1) over 2 k rho) lies
+    between the tracker's margin (1e-9) and the classification's degeneracy tolerance
+    (1e-8): the tracker verifies it, the classification reads 'degenerate'.  The tracked
+    record says so (MARGIN_CERTIFIED) and is ``stable``, and the simulator (the node's
+    ``stable`` and ``equilibrium``) shows it stable, near a jump; before, an ok command
+    there left the node at ERROR "not a stable equilibrium".  A solver root at the same
+    parameters is not tracker-verified: it still reads degenerate, not stable."""
+    from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+    from tensegrity_ros.core.tolerances import DEFINITENESS_TOL, DEGENERACY_TOL, MARGIN_CERTIFIED
+    for rho in (1.0 + 2e-9, 1.0 + 1e-8, 1.0 - 1e-9):
+        exact = np.linalg.eigvalsh(module_hessian_upright(rho)) if rho > 1.0 else None
+        if exact is not None:
+            assert DEFINITENESS_TOL < exact[0] / exact[-1] <= DEGENERACY_TOL
+        start, theta = (1.3, np.zeros(2)) if rho > 1.0 else (0.9, np.full(2, 0.45))
+        result = track_module(ModuleParams.paper(start), ModuleParams.paper(rho), theta)
+        assert result.status == 'ok' and result.jumps == (), (rho, result.message)
+        final = result.final
+        assert final.kind == 'degenerate' and final.stable, (rho, final)
+        assert final.certificate == MARGIN_CERTIFIED and result.certificate == ''
+        if exact is not None:
+            np.testing.assert_allclose(final.eigenvalues, exact, rtol=1e-6)
+        sim = Simulator([ModuleParams.paper(start)], [theta], [ModuleLimits(0.05, 1.95)])
+        assert sim.command_rho(0, rho, 0).status == 'ok'
+        status = sim.status(0)
+        assert sim.stable and status.level == 'warn' and 'near a jump' in status.message
+    roots = [e for e in equilibria(ModuleParams.paper(1.0 + 2e-9))
+             if np.max(np.abs(e.theta)) < 1e-6]
+    assert roots and all(e.kind == 'degenerate' and not e.stable for e in roots)

@@ -28,7 +28,9 @@ class Equilibrium:
 
     ``certificate``: a tracked state's :attr:`.continuation.Track.certificate` (non-empty
     where it ends so close past a passed branch point that it is shown a minimum by the
-    normal form; its classification then reads 'degenerate', yet it is ``stable``)."""
+    normal form; its classification then reads 'degenerate', yet it is ``stable``), or
+    :data:`~.tolerances.MARGIN_CERTIFIED` where the tracker's margin test verified a
+    state that classifies as degenerate (also ``stable``)."""
 
     theta1: float
     theta2: float

@@ -14,7 +14,12 @@ A state is a minimum only if lambda_min > tol * |lambda_max|, with two values of
   with 1e-9 states on a fold classify as minima).
 
 So a one-module state that the tracker verified with 1e-9 < lambda_min / lambda_max
-<= 1e-8 (within ~1e-16 in s of a fold) reads back as 'degenerate', not 'stable'.
+<= 1e-8 (within ~1e-16 in s of a fold, within ~1e-8 in rho of the unloaded paper
+module's branch point at rho = L) classifies as 'degenerate'; the tracker marks it
+(:data:`MARGIN_CERTIFIED`, on :attr:`.classification.Equilibrium.certificate`), so that
+it is still ``stable``, as the tracker verified it (before, the node showed such a
+state, e.g. the paper module commanded to rho = 1 + 1e-8, as ERROR "not a stable
+equilibrium").
 
 One exception to DEFINITENESS_TOL: within ~1e-7 in s of a simple branch point (past a
 passed pitchfork, or before one) lambda_min grows linearly from zero and falls below
@@ -30,6 +35,9 @@ by the normal form (:meth:`.continuation._Tracker.toward_branch_point`).
 
 #: The tracker's (and a tracked neck state's) definiteness: lambda_min > this * |lambda_max|.
 DEFINITENESS_TOL = 1e-9
+#: The certificate of a tracked module state that passed the tracker's margin test
+#: (DEFINITENESS_TOL) but classifies as degenerate (DEGENERACY_TOL): see above.
+MARGIN_CERTIFIED = 'tracker_margin_test'
 #: An eigenvalue with |lambda| <= DEGENERACY_TOL * max|lambda| counts as zero in the
 #: classification of solver roots.
 DEGENERACY_TOL = 1e-8

@@ -17,6 +17,7 @@ from . import module as _m
 from .continuation import TrackerSettings
 from .classification import Equilibrium, _build, _eigenvalues_2x2
 from .module import ModuleParams, PARAMETER_NAMES
+from .tolerances import DEGENERACY_TOL, MARGIN_CERTIFIED, verified_minimum
 
 
 @dataclass(frozen=True)
@@ -207,6 +208,14 @@ def _wrap(theta):
     return (np.asarray(theta, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def _verified_yet_degenerate(eigenvalues):
+    """Whether a state the tracker verified by its margin test (lambda_min above
+    DEFINITENESS_TOL of lambda_max) classifies as degenerate (below DEGENERACY_TOL):
+    then it carries :data:`~.tolerances.MARGIN_CERTIFIED` (see tolerances.py)."""
+    low, high = eigenvalues[0], eigenvalues[-1]
+    return verified_minimum(eigenvalues) and low <= DEGENERACY_TOL * max(abs(low), abs(high))
+
+
 def equilibrium_at(params: ModuleParams, theta) -> Equilibrium:
     """The :class:`Equilibrium` record (eigenvalues, energy, force, residual) at ``theta``."""
     t1, t2 = (float(v) for v in _wrap(theta))
@@ -259,6 +268,8 @@ def track_module(start: ModuleParams, end: ModuleParams, theta,
     final = equilibrium_at(reached, result.state)
     if result.certificate:              # (rare: a replace costs ~2 us per command)
         final = replace(final, certificate=result.certificate)
+    elif _verified_yet_degenerate(final.eigenvalues):
+        final = replace(final, certificate=MARGIN_CERTIFIED)
     return ModuleTrack(final=final, end=reached, jumps=jumps,
                        status=result.status, message=result.message, steps=result.steps,
                        passages=tuple(path.params(s) for s, _ in result.passages),

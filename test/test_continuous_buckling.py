@@ -362,3 +362,27 @@ def test_a_tracked_module_state_verified_by_the_margin_test_reads_stable():
     roots = [e for e in equilibria(ModuleParams.paper(1.0 + 2e-9))
              if np.max(np.abs(e.theta)) < 1e-6]
     assert roots and all(e.kind == 'degenerate' and not e.stable for e in roots)
+
+
+def test_a_command_ending_exactly_at_the_branch_point_keeps_the_last_verified_state():
+    """The default node's module (the unloaded paper module) commanded to rho = 1.0, its
+    branch point exactly (DESIGN.md's Hessian is singular there: eigenvalues 0 and 2 k),
+    from either side: the state there is degenerate (lambda_min = 0), which no test can
+    verify as a minimum, so the command ends failed on the last verified state, within
+    ~1e-9 in rho of it, stable (read so), no jump, and says why; the next command goes
+    on.  (Before, the message spoke of a buckled state or a landing that could not be
+    followed back, and the state kept read ERROR "not a stable equilibrium".)"""
+    from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+    assert np.linalg.eigvalsh(module_hessian_upright(1.0))[0] == 0.0
+    for start, theta, after in ((1.3, np.zeros(2), 0.9), (0.75, np.full(2, 0.72), 1.2)):
+        result = track_module(ModuleParams.paper(start), ModuleParams.paper(1.0), theta)
+        assert result.status == 'failed' and result.jumps == ()
+        assert 'at the critical point itself' in result.message, result.message
+        assert abs(result.end.rho - 1.0) < 1e-8 and result.end.rho != 1.0
+        assert result.final.stable
+        sim = Simulator([ModuleParams.paper(start)], [theta], [ModuleLimits(0.05, 1.95)])
+        outcome = sim.command_rho(0, 1.0, 0)
+        status = sim.status(0)
+        assert outcome.status == 'failed' and sim.stable and status.level == 'warn'
+        assert 'at the critical point itself' in status.message
+        assert sim.command_rho(0, after, 0).status == 'ok' and sim.stable

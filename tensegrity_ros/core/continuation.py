@@ -56,6 +56,9 @@ PITCHFORK_CERTIFIED = 'pitchfork_normal_form'
 #: jumps).  Not everywhere: it made the N = 3 neck's command up to 1e-10 before its
 #: branch point list a false passage 7e-8 early.
 PITCHFORK_CONTRACTION = 0.75
+#: A critical point is located to this in s (DESIGN.md): a command that ends closer than
+#: this past one ends at the critical point itself (see ``_Tracker.at_the_critical_point``).
+LOCATION_TOL = 1e-9
 
 
 class PathProblem(Protocol):
@@ -729,9 +732,9 @@ class _Tracker:
         chord force grows without bound), or the failed step's reason."""
         limit = getattr(self.problem, 'linkage_limit', lambda *_: '')(y, s)
         if limit:
-            return (f'linkage limit at s={s!r}: {limit}; no minimum goes on continuously '
+            return (f'linkage limit at s={float(s)!r}: {limit}; no minimum goes on continuously '
                     f'past it, and the rigid-chord model does not say where the mechanism goes')
-        return f'step size underflow at s={s!r} ({reason})'
+        return f'step size underflow at s={float(s)!r} ({reason})'
 
     def nearest_minimum(self, y, s):
         """The verified minimum at s nearest to ``y`` among those Newton reaches from y
@@ -807,14 +810,26 @@ class _Tracker:
         if s_land > s_end:
             back = _Tracker(_Segment(problem, s_land, s_end), self.settings).run(landing)
             if back.status != 'ok' or back.events:
-                raise TrackingError(f'the landing after the {kind} at s={s_star!r} does not '
-                                    f'persist to the end of the command')
+                raise TrackingError(f'the landing after the {kind} at s={float(s_star)!r} does not '
+                                    f'persist to the end of the command'
+                                    + self.at_the_critical_point(s_star, s_end))
             landing, s_land, self.certificate = back.state, s_end, back.certificate
         if event is None:
             return landing, s_land, None
         at_event, s_at = self.landing_at_event(landing, s_land, s_star)
         return landing, s_land, Event(kind=kind, s=s_star, state=y_star, landing_s=s_at,
                                       landing=at_event, ambiguous=ambiguous)
+
+    def at_the_critical_point(self, s_star, s_end):
+        """What to add to a failure after the critical point at s* where the command ends
+        within its location tolerance of it (e.g. the unloaded paper module commanded to
+        rho = L exactly): there the state is degenerate (lambda_min ~ 0), a minimum no
+        test can verify, so the last verified state is kept.  '' elsewhere."""
+        if not 0.0 <= s_end - s_star <= LOCATION_TOL:
+            return ''
+        return (f' (the command ends {s_end - s_star:.1e} in s past it, at the critical point '
+                f'itself: its state is degenerate, lambda_min ~ 0, not a verifiable minimum; '
+                f'the last verified state is kept)')
 
     def buckled_minimum(self, s_star, y_star, s_end):
         """The stable buckled state just past a supercritical branch point: (state, s,
@@ -864,8 +879,9 @@ class _Tracker:
             return near, s_end, True
         back = _Tracker(_Segment(self.problem, s, s_end), self.settings).run(y)
         if back.status != 'ok' or back.events:
-            raise TrackingError(f'the buckled state after the branch point at s={s_star!r} '
-                                f'could not be followed back to the end of the command')
+            raise TrackingError(f'the buckled state after the branch point at s={float(s_star)!r} '
+                                f'could not be followed back to the end of the command'
+                                + self.at_the_critical_point(s_star, s_end))
         self.certificate = back.certificate
         return back.state, s_end, not back.passages
 
@@ -1087,7 +1103,7 @@ class _Tracker:
             if landing is not None:
                 landings.append(landing)
         if not landings:
-            raise TrackingError(f'could not land after the {kind} at s={s_star!r}')
+            raise TrackingError(f'could not land after the {kind} at s={float(s_star)!r}')
         landings.sort(key=lambda y: problem.energy(y, s_land))
         ambiguous = (len(landings) == 2
                      and self.separation(landings[0], landings[1]) > 1e-6)

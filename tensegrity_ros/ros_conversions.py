@@ -276,9 +276,15 @@ def jump_status(*, name, hardware_id, modules, jump):
         module=module, from_theta=jump.from_theta[index], to_theta=jump.to_theta[index],
         cause=jump.cause, index=jump.count,
         where=f' of the stack at {module}' if neck else ' at', label=f'{module} ' if neck else '')
+    landing = jump.landing
+    pairs.append(('landing_rho', float(landing[index].rho)))
+    if landing[index].rho != jump.modules[index].rho:
+        status.message += f' (an equilibrium at rho={landing[index].rho:.6g})'
     if neck:
         for i, m in enumerate(modules):
             pairs.append((f'{m}_rho', float(jump.modules[i].rho)))
+        for i, m in enumerate(modules):
+            pairs.append((f'landing_{m}_rho', float(landing[i].rho)))
         for side, theta in (('from', jump.from_theta), ('to', jump.to_theta)):
             for i, m in enumerate(modules):
                 pairs.append((f'{side}_{m}_theta1', float(theta[i][0])))

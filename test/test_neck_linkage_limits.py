@@ -162,3 +162,45 @@ def test_a_short_command_across_a_fold_reached_to_rounding_jumps_there(n):
     assert abs(jump.stack.modules[-1].rho - fold) < 1e-8
     assert angle_distance(np.ravel(jump.to_theta), np.ravel(long.jumps[0].to_theta)) < 1e-4
     assert_stable_for_the_reference(near, past, jump.to_theta, jump.s)
+
+
+def test_a_jump_that_lands_past_its_fold_says_where_its_landing_is_an_equilibrium():
+    """config/neck.yaml's modules (found by a seeded run of round-number commands), head
+    pulled up 1 N, m0 at 0.15 m, m1's actuator 0.08 -> 0.13 m: the neck folds at m1 rho
+    0.0899946 (5e-6 m short of m0's linkage limit, rho0 + rho1 = L1 + L2 = 0.24) and the
+    minimum it lands in exists only from 5e-5 m further on.  Its landing angles are an
+    equilibrium there, not at the fold (the reference's Newton from them at the fold's
+    parameters moves them), so the jump says so: the simulator's Jump carries those
+    parameters (``landing``) and the ``jumps`` message ``landing_rho`` and
+    ``landing_<m>_rho`` (before, it gave the landing angles beside the fold's rho alone:
+    0.016 rad from any equilibrium there)."""
+    from tensegrity_ros import ros_conversions
+    from tensegrity_ros.core.mechanisms import Neck, make_jump
+    neck = lambda rho1: Stack((
+        ModuleParams(rho=0.15, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02),
+        ModuleParams(rho=rho1, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02),
+        ModuleParams(rho=0.09, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02,
+                     f3y=1.0, f4y=1.0)))
+    state = np.array([0.28968699, 2.85190566, 0.78366205, 2.3579306, 0.74311249, 2.39848016,
+                      1.89924432, 0.78994397])
+    start, end = neck(0.08), neck(0.13)
+    track = track_stack(start, end, state)
+    jump = track.jumps[0]
+    assert jump.kind == 'fold' and jump.landed_past, jump
+    fold, landing = jump.stack.modules[1].rho, jump.landing_stack.modules[1].rho
+    assert 0.0899 < fold < 0.24 - 0.15 < landing < 0.0901
+    assert_stable_for_the_reference(start, end, jump.to_theta, (landing - 0.08) / 0.05)
+    system = NeckSystem(start.modules, end.modules)
+    at_fold, _ = system.critical_point(np.ravel(jump.to_theta), jump.s)
+    assert angle_distance(at_fold, np.ravel(jump.to_theta)) > 1e-3
+    motion = Neck().track(start.modules, end.modules, track_stack(start, start, state).final)
+    event = make_jump(motion.jumps[0], module=1, cause='rho_cmd', count=1)
+    assert event.landing[1].rho == pytest.approx(landing, abs=1e-12)
+    assert event.modules[1].rho == pytest.approx(fold, abs=1e-12)
+    message = ros_conversions.jump_status(name='tensegrity: m1 jump', hardware_id='t',
+                                          modules=('m0', 'm1', 'm2'), jump=event)
+    values = {kv.key: kv.value for kv in message.values}
+    assert float(values['rho']) == event.modules[1].rho
+    assert float(values['landing_rho']) == float(values['landing_m1_rho']) == event.landing[1].rho
+    assert float(values['landing_m0_rho']) == 0.15 and float(values['m1_rho']) == float(values['rho'])
+    assert f'an equilibrium at rho={landing:.6g}' in message.message

@@ -170,6 +170,9 @@ def test_head_load_jump_reported_by_a_lower_module_command(neck):
     np.testing.assert_allclose(_angles(v, 'to'), jump.to_theta, atol=1e-9)
     assert float(v['from_theta1']) == float(v['from_m0_theta1'])
     assert float(v['to_theta2']) == float(v['to_m0_theta2'])
+    landing = (jump.landing_stack or jump.stack).modules       # where to_theta is a minimum
+    assert float(v['landing_rho']) == pytest.approx(landing[0].rho, abs=1e-9)
+    assert float(v['landing_m2_rho']) == pytest.approx(landing[2].rho, abs=1e-9)
     # the node lands where the core does; every module records the jump
     h.spin_until(lambda: h.node.stack_state()[0].modules[0].rho == 0.05, what='landing')
     np.testing.assert_allclose(h.node.stack_state()[1].theta, expected.final.theta, atol=1e-8)

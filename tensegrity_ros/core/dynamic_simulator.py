@@ -298,10 +298,11 @@ class DynamicSimulator(Simulator):
                       else tuple(p.rho for p in start))
         if raw is None:     # inertia alone: no fold on the quasi-static path
             raw = ('inertial', 1.0, tuple(p.with_(rho=r) for p, r in zip(start, onset_rhos)),
-                   np.reshape(start_state.theta, (-1, 2)), None, False)
-        kind, s, critical, from_theta, _, ambiguous = raw
-        jump = self._record_jump((kind, s, critical, from_theta, landing, ambiguous),
-                                 self._trigger, self._cause)
+                   np.reshape(start_state.theta, (-1, 2)), None, False, None)
+        kind, s, critical, from_theta, _, ambiguous, _ = raw
+        # (the rods rest in an equilibrium of the parameters now, not of the critical ones)
+        jump = self._record_jump((kind, s, critical, from_theta, landing, ambiguous,
+                                  tuple(self.modules)), self._trigger, self._cause)
         return dataclasses.replace(jump, dynamics=_figures(report, self._trigger, predicted,
                                                            elsewhere))
 

@@ -44,6 +44,15 @@ class Jump:
     cause: str
     count: int
     dynamics: dict | None = None
+    #: The parameters ``to_theta`` is an equilibrium of: ``modules`` (None: the same) except
+    #: where the landing minimum exists only a little past the critical point (a neck's
+    #: fold: e.g. 5e-5 m further), or, in dynamics mode, those where the rods came to rest.
+    landing_modules: tuple | None = None
+
+    @property
+    def landing(self):
+        """The parameters ``to_theta`` is an equilibrium of (see ``landing_modules``)."""
+        return self.modules if self.landing_modules is None else self.landing_modules
 
 
 @dataclass(frozen=True)

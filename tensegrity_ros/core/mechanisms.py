@@ -92,7 +92,7 @@ class OneModule:
         track = track_module(start[0], end[0], state.theta,
                              certificate=getattr(state, 'certificate', ''))
         jumps = [(j.kind, j.s, (j.params,), np.array([j.from_theta]), np.array([j.to_theta]),
-                  j.ambiguous) for j in track.jumps]
+                  j.ambiguous, (j.landing_params or j.params,)) for j in track.jumps]
         passages = tuple((params,) for params in track.passages)
         return Motion(track.final, (track.end,), jumps, track.status, track.message, passages,
                       track.certificate)
@@ -161,8 +161,8 @@ class Neck:
         start = self._stack(start)
         self._last = (end, Stack(end))
         track = track_stack(start, self._last[1], state)
-        jumps = [(j.kind, j.s, j.stack.modules, j.from_theta, j.to_theta, j.ambiguous)
-                 for j in track.jumps]
+        jumps = [(j.kind, j.s, j.stack.modules, j.from_theta, j.to_theta, j.ambiguous,
+                  (j.landing_stack or j.stack).modules) for j in track.jumps]
         passages = tuple(p.stack.modules for p in track.passages)
         return Motion(track.final, track.end.modules, jumps, track.status, track.message,
                       passages, track.final.certificate)
@@ -210,8 +210,11 @@ def mechanism_for(count):
 
 
 def make_jump(raw, *, module, cause, count):
-    """A :class:`Jump` event from a solver's raw jump tuple."""
-    kind, s, modules, from_theta, to_theta, ambiguous = raw
+    """A :class:`Jump` event from a solver's raw jump tuple (kind, s, modules at the
+    critical point, from_theta, to_theta, ambiguous, modules to_theta is an equilibrium of
+    or ``None`` for the same)."""
+    kind, s, modules, from_theta, to_theta, ambiguous, landing = raw
     return Jump(kind=kind, s=s, modules=tuple(modules), from_theta=np.asarray(from_theta),
                 to_theta=np.asarray(to_theta), ambiguous=bool(ambiguous), module=module,
-                cause=cause, count=count)
+                cause=cause, count=count,
+                landing_modules=tuple(modules if landing is None else landing))

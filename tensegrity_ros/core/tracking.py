@@ -213,7 +213,8 @@ def _verified_yet_degenerate(eigenvalues):
     DEFINITENESS_TOL of lambda_max) classifies as degenerate (below DEGENERACY_TOL):
     then it carries :data:`~.tolerances.MARGIN_CERTIFIED` (see tolerances.py)."""
     low, high = eigenvalues[0], eigenvalues[-1]
-    return verified_minimum(eigenvalues) and low <= DEGENERACY_TOL * max(abs(low), abs(high))
+    # (the rare degenerate reading first: every command asks)
+    return low <= DEGENERACY_TOL * max(abs(low), abs(high)) and verified_minimum(eigenvalues)
 
 
 def equilibrium_at(params: ModuleParams, theta) -> Equilibrium:

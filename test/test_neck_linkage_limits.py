@@ -202,5 +202,6 @@ def test_a_jump_that_lands_past_its_fold_says_where_its_landing_is_an_equilibriu
     values = {kv.key: kv.value for kv in message.values}
     assert float(values['rho']) == event.modules[1].rho
     assert float(values['landing_rho']) == float(values['landing_m1_rho']) == event.landing[1].rho
-    assert float(values['landing_m0_rho']) == 0.15 and float(values['m1_rho']) == float(values['rho'])
+    assert float(values['landing_m0_rho']) == 0.15
+    assert float(values['m1_rho']) == float(values['rho'])
     assert f'an equilibrium at rho={landing:.6g}' in message.message

@@ -810,8 +810,8 @@ class _Tracker:
         if s_land > s_end:
             back = _Tracker(_Segment(problem, s_land, s_end), self.settings).run(landing)
             if back.status != 'ok' or back.events:
-                raise TrackingError(f'the landing after the {kind} at s={float(s_star)!r} does not '
-                                    f'persist to the end of the command'
+                raise TrackingError(f'the landing after the {kind} at s={float(s_star)!r} does '
+                                    f'not persist to the end of the command'
                                     + self.at_the_critical_point(s_star, s_end))
             landing, s_land, self.certificate = back.state, s_end, back.certificate
         if event is None:

@@ -184,7 +184,7 @@ def test_a_small_command_gets_the_careful_paths_answer(seed, n, size, load):
     """Random small commands (one module's rho, and a head load) on random necks: what
     track_stack answers, by the fast step or not, is what the generic tracker alone
     answers on the same command, to 1e-10 (the fast step stops Newton once its update
-    is below 1e-12, the tracker iterates to rounding)."""
+    is below 1e-11, the tracker iterates to rounding)."""
     rng = np.random.default_rng(seed)
     stack = random_stack(rng, n)
     state = settle_stack(stack, np.full((n, 2), 0.75))

@@ -199,12 +199,13 @@ class TrackingError(RuntimeError):
 
 
 def _solve(matrix, rhs):
-    if matrix.shape == (2, 2):
-        a, b, c, d = matrix[0, 0], matrix[0, 1], matrix[1, 0], matrix[1, 1]
+    if matrix.shape == (2, 2):                  # (in Python floats: no numpy scalars)
+        (a, b), (c, d) = matrix.tolist()
+        r0, r1 = rhs.tolist()
         det = a * d - b * c
         if det == 0.0 or not math.isfinite(det):
             raise np.linalg.LinAlgError('singular 2x2 matrix')
-        return np.array([(d * rhs[0] - b * rhs[1]) / det, (a * rhs[1] - c * rhs[0]) / det])
+        return np.array([(d * r0 - b * r1) / det, (a * r1 - c * r0) / det])
     return np.linalg.solve(matrix, rhs)
 
 

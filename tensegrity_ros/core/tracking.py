@@ -13,7 +13,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from . import continuation as _continuation
-from . import module as _m
 from .continuation import TrackerSettings
 from .classification import Equilibrium, _build, _eigenvalues_2x2
 from .module import ModuleParams, PARAMETER_NAMES
@@ -86,17 +85,19 @@ class ModulePath:
         self.dp = end.vector() - self.p0
         self.dp_list = self.dp.tolist()
         self.g = start.g
-        self._cache_s = None
-        self._cache = None
+        self._values = {}
 
     def values(self, s):
-        """(rho, L1, L2, ka, kb, kc, f3x, f3y_total, f4x, f4y_total) at s."""
-        if s != self._cache_s:
+        """(rho, L1, L2, ka, kb, kc, f3x, f3y_total, f4x, f4y_total) at s (kept for a few
+        s: a step visits s, s + ds and its probe's s + 1e-6 in turn)."""
+        found = self._values.get(s)
+        if found is None:
+            if len(self._values) > 4:
+                self._values.clear()
             rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y, m1, m2 = (self.p0 + s * self.dp).tolist()
-            self._cache = (rho, L1, L2, ka, kb, kc, f3x, f3y - 0.5 * m1 * self.g,
-                           f4x, f4y - 0.5 * m2 * self.g)
-            self._cache_s = s
-        return self._cache
+            found = self._values[s] = (rho, L1, L2, ka, kb, kc, f3x, f3y - 0.5 * m1 * self.g,
+                                       f4x, f4y - 0.5 * m2 * self.g)
+        return found
 
     def params(self, s):
         return ModuleParams.from_vector(self.p0 + s * self.dp, g=self.g)
@@ -109,21 +110,21 @@ class ModulePath:
         return True
 
     def residual(self, y, s):
-        rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = self.values(s)
-        t1, t2 = y[0], y[1]
-        s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
-        s12 = s1 * c2 + c1 * s2
-        return np.array([L1 * ((ka + kc) * rho * s1 - kc * L2 * s12 + f3x * s1 - f3y * c1),
-                         L2 * ((kb + kc) * rho * s2 - kc * L1 * s12 - f4x * s2 - f4y * c2)])
+        return np.array(_gradient(self.values(s), y[0], y[1]))
 
     def jacobian(self, y, s):
+        h11, h12, h22 = self._hessian(y, s)
+        return np.array([[h11, h12], [h12, h22]])
+
+    def _hessian(self, y, s):
+        """(h11, h12, h22) as floats (the eigenvalues need no array)."""
         rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = self.values(s)
         t1, t2 = y[0], y[1]
         s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
         c12 = c1 * c2 - s1 * s2
-        h12 = -kc * L1 * L2 * c12
-        return np.array([[L1 * ((ka + kc) * rho * c1 - kc * L2 * c12 + f3x * c1 + f3y * s1), h12],
-                         [h12, L2 * ((kb + kc) * rho * c2 - kc * L1 * c12 - f4x * c2 + f4y * s2)]])
+        return (L1 * ((ka + kc) * rho * c1 - kc * L2 * c12 + f3x * c1 + f3y * s1),
+                -kc * L1 * L2 * c12,
+                L2 * ((kb + kc) * rho * c2 - kc * L1 * c12 - f4x * c2 + f4y * s2))
 
     def residual_s(self, y, s):
         """dF/ds = dF/dp . (end - start) at fixed angles."""
@@ -172,12 +173,10 @@ class ModulePath:
 
     def eigenvalues(self, y, s):
         """Ascending Hessian eigenvalues (the cheap half of :meth:`stability`)."""
-        h = self.jacobian(y, s)
-        return np.array(_eigenvalues_2x2(h[0, 0], h[0, 1], h[1, 1]))
+        return np.array(_eigenvalues_2x2(*self._hessian(y, s)))
 
     def stability(self, y, s):
-        h = self.jacobian(y, s)
-        a, b, c = h[0, 0], h[0, 1], h[1, 1]
+        a, b, c = self._hessian(y, s)
         low, high = _eigenvalues_2x2(a, b, c)
         return np.array([low, high]), np.column_stack([_eigenvector(a, b, c, low),
                                                        _eigenvector(a, b, c, high)])
@@ -191,6 +190,16 @@ class ModulePath:
     @staticmethod
     def canonical(y):
         return (np.asarray(y) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _gradient(values, t1, t2):
+    """dU/dtheta as two floats, from :meth:`ModulePath.values`' tuple (module.gradient
+    for one state, without numpy: the tracker and its records call it per command)."""
+    rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = values
+    s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
+    s12 = s1 * c2 + c1 * s2
+    return (L1 * ((ka + kc) * rho * s1 - kc * L2 * s12 + f3x * s1 - f3y * c1),
+            L2 * ((kb + kc) * rho * s2 - kc * L1 * s12 - f4x * s2 - f4y * c2))
 
 
 def _eigenvector(a, b, c, lam):
@@ -219,8 +228,9 @@ def _verified_yet_degenerate(eigenvalues):
 
 def equilibrium_at(params: ModuleParams, theta) -> Equilibrium:
     """The :class:`Equilibrium` record (eigenvalues, energy, force, residual) at ``theta``."""
-    t1, t2 = (float(v) for v in _wrap(theta))
-    grad = _m.gradient(params, (t1, t2))
+    t1, t2 = _wrap(theta).tolist()
+    grad = _gradient((params.rho, params.L1, params.L2, params.ka, params.kb, params.kc,
+                      params.f3x, params.f3y_total, params.f4x, params.f4y_total), t1, t2)
     scale = max(abs((params.ka + params.kc) * params.rho + params.f3x), abs(params.f3y_total),
                 abs((params.kb + params.kc) * params.rho - params.f4x), abs(params.f4y_total),
                 params.kc * params.L1, params.kc * params.L2)

@@ -273,6 +273,9 @@ class _Tracker:
         self.normal_form_tried = None   # the s it was tried at (once per state)
         #: The last verified state of :meth:`run` (what a spent time budget returns).
         self.kept = None
+        #: (s, state, eigenvalues) of the last state of :meth:`run` whose lambda_min passed
+        #: the margin test 100-fold, on the branch tracked since (see :meth:`toward_branch_point`).
+        self.clear_of_margin = None
         weights = getattr(problem, 'state_weights', None)
         self.weights = None if weights is None else np.asarray(weights, dtype=float)
 
@@ -396,6 +399,7 @@ class _Tracker:
                 rate = self.last_rate = (eig1[0] - eigenvalues[0]) / ds
                 y, s, eigenvalues = y1, s + ds, eig1
                 self.keep(y, s, eigenvalues, events)
+                self.note_margin(y, s, eigenvalues)
                 self.rescale(eigenvalues)
                 ds *= 2.0
                 continue
@@ -430,6 +434,7 @@ class _Tracker:
                     self.last_rate = (eig1[0] - eigenvalues[0]) / (s1 - s)
                     y, s, eigenvalues, rate = y1, s1, eig1, None
                     self.keep(y, s, eigenvalues, events)
+                    self.note_margin(y, s, eigenvalues)
                     self.rescale(eigenvalues)
                     continue
                 if arc is not None:
@@ -456,6 +461,7 @@ class _Tracker:
                 y, s, event = moved
                 if event is not None:
                     events.append(event)
+                self.clear_of_margin = None     # another branch (or across a limit)
                 eigenvalues = self.eigenvalues(y, s)
                 self.keep(y, s, eigenvalues, events)
                 self.rescale(eigenvalues)
@@ -521,6 +527,12 @@ class _Tracker:
         if self.base_scale is None:
             self.base_scale = max(local, 1e-300)
         self.scale = local if 0.0 < local < self.base_scale else self.base_scale
+
+    def note_margin(self, y, s, eigenvalues):
+        """Remember an accepted state whose lambda_min passes the margin test 100-fold."""
+        if eigenvalues[0] > 100.0 * self.settings.definiteness_tol * max(
+                abs(eigenvalues[-1]), self.scale * 1e-3):
+            self.clear_of_margin = (s, y, eigenvalues)
 
     def keep(self, y, s, eigenvalues, events):
         """Note a verified state of :meth:`run` (with its certificate and the events
@@ -924,7 +936,13 @@ class _Tracker:
         test 100-fold; lambda_min's linear law through both states gives s*, the square
         root law y*, and :meth:`buckled_at` solves the end state from the far one.  (Two
         far states would avoid y's noise, but lambda_min's law is linear only to ~1e-4
-        that far, which puts s* off by more.)  ``near``: tried from a state verified by
+        that far, which puts s* off by more.)  Where no run away leaves the noise (every
+        step 'far': the N = 3 neck 1.8e-10 in s past it) and the command ends short of
+        the branch point, the far state is this run's last one that passed the margin test
+        100-fold (:attr:`clear_of_margin`, the branch followed since: no event between).
+        That far (3e-5 in s on that neck) the linear law puts s* within ~1e-11 in s, so
+        an end closer than that is not resolved: it is not certified, and the command
+        fails on the last verified state.  ``near``: tried from a state verified by
         the margin test too, where a step towards the branch point ended below the margin
         on lambda_min's linear law (see where :meth:`run` calls it so)."""
         if not ((self.certificate or near) and self.normal_form_end and s < s_end
@@ -933,7 +951,9 @@ class _Tracker:
         self.normal_form_tried = s
         certificate, self.certificate = self.certificate, ''
         lam, found = self.eigenvalues(y, s)[0], None
-        far = self.away_from_branch_point(y, s, s_end - s, certificate)
+        far, remembered = self.away_from_branch_point(y, s, s_end - s, certificate), False
+        if far is None and self.clear_of_margin is not None and self.clear_of_margin[0] < s:
+            far, remembered = self.clear_of_margin, True
         if far is not None:
             s_far, far_state, far_eigenvalues = far
             rate = (far_eigenvalues[0] - lam) / (s_far - s)
@@ -943,7 +963,7 @@ class _Tracker:
                 y_star = (y - ratio * far_state) / (1.0 - ratio)
             if s < s_star and s_end < s_star:
                 found = self.buckled_at(s_star, y_star, far_state, s_far, s_end)
-            elif s < s_star:
+            elif s < s_star and not remembered:
                 s_end = min(s_end, 2.0 * s_star - s)   # as far before s* as y was past it
                 found = self.unbuckled_at(s_star, y_star, rate, s_end)
         if found is None:

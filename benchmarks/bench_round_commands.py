@@ -1,0 +1,116 @@
+#!/usr/bin/env python3
+"""Round-number command streams on config/neck.yaml: how often tracking gives up, and why.
+
+What a user types (issue 10): seeded streams of actuator targets from 0.05 to 0.15 m in
+steps of 1 cm (one module, or all three at once) and head loads (-10 .. +1 N), 15
+commands per stream, each from where the last one left the neck, through the core
+:class:`~tensegrity_ros.core.simulator.Simulator` (no ROS) with no time budget, so every
+command is one deterministic call.  A command that stops early is a tracking failure
+(state kept, the reason in its text); they are counted by reason, with the slowest
+command.  A command running longer than ``--limit`` seconds is stopped (SIGALRM) and
+its stream ends there.  No target: a measurement of what is left to fix (session 9:
+seed 0 gave 11 failures besides linkage limits and one command over 20 s).
+
+    python benchmarks/bench_round_commands.py [--seeds 0 1] [--streams 25] [--limit 20]
+"""
+import argparse
+import collections
+import os
+import random
+import re
+import signal
+import time
+from pathlib import Path
+
+from tensegrity_ros.core.events import TrackingFailure
+from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+from tensegrity_ros.params_file import load_stack_config
+
+os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'neck.yaml'
+TARGETS = [round(0.05 + 0.01 * i, 2) for i in range(11)]
+LOADS = [0.0, -0.5, -1.0, -2.0, -5.0, 0.5, 1.0, -10.0]
+
+
+class TooLong(Exception):
+    """A command ran past the limit."""
+
+
+def _too_long(*_):
+    raise TooLong
+
+
+def reason(text):
+    """The kind of a failure's text: its reason without the numbers."""
+    text = text.split(': ', 1)[-1]
+    text = re.sub(r'stopped at m\d rho=[-0-9.e]+: ', '', text)
+    return re.sub(r'[-+]?\d[\d.e+-]*', '#', text)[:70]
+
+
+def stream(config, rng, count, limit):
+    """One stream: (failures [(reason, text, command)], slowest finished (s, command),
+    the command stopped at the limit or None)."""
+    modules = [m.params for m in config.modules]
+    limits = [ModuleLimits(m.rho_min, m.rho_max) for m in config.modules]
+    sim = Simulator(modules, [m.initial_theta for m in config.modules], limits=limits,
+                    time_budget=None)
+    failures, slowest = [], (0.0, None)
+    for _ in range(count):
+        kind = rng.random()
+        if kind < 0.4:
+            command = ('rho_cmd', rng.randrange(3), rng.choice(TARGETS))
+            call = lambda: sim.command_rho(command[1], command[2], 0)
+        elif kind < 0.7:
+            command = ('joint_commands', {i: rng.choice(TARGETS) for i in range(3)})
+            call = lambda: sim.command_rhos(command[1], 0)
+        else:
+            command = ('head load', rng.choice(LOADS))
+            call = lambda: sim.set_parameters({2: dict(f3y=command[1], f4y=command[1])}, 0,
+                                              'force')
+        start = time.process_time()
+        signal.alarm(limit)
+        try:
+            outcome = call()
+        except TooLong:
+            return failures, slowest, command
+        finally:
+            signal.alarm(0)
+        spent = time.process_time() - start
+        slowest = max(slowest, (spent, command), key=lambda t: t[0])
+        failures += [(reason(e.text), e.text, command) for e in outcome.events
+                     if isinstance(e, TrackingFailure)]
+    return failures, slowest, None
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--seeds', type=int, nargs='+', default=[0])
+    parser.add_argument('--streams', type=int, default=25)
+    parser.add_argument('--commands', type=int, default=15)
+    parser.add_argument('--limit', type=int, default=20, help='s per command')
+    args = parser.parse_args()
+    signal.signal(signal.SIGALRM, _too_long)
+    config = load_stack_config(str(CONFIG))
+    for seed in args.seeds:
+        rng = random.Random(seed)
+        counts, examples, slow, worst = collections.Counter(), {}, [], (0.0, None)
+        for index in range(args.streams):
+            failures, slowest, stopped = stream(config, rng, args.commands, args.limit)
+            for kind, text, command in failures:
+                counts[kind] += 1
+                examples.setdefault(kind, (index, command, text))
+            if stopped is not None:
+                slow.append((index, stopped))
+            worst = max(worst, slowest, key=lambda t: t[0])
+        print(f'seed {seed}: {args.streams} streams x {args.commands} commands; '
+              f'{sum(counts.values())} tracking failures; over {args.limit} s: {len(slow)}; '
+              f'slowest finished command {worst[0]:.2f} s {worst[1]}')
+        for kind, n in counts.most_common():
+            index, command, text = examples[kind]
+            print(f'  {n:3d} x {kind}\n        e.g. stream {index}, {command}: {text[:160]}')
+        for index, command in slow:
+            print(f'  over {args.limit} s: stream {index}, {command} (the stream ends there)')
+
+
+if __name__ == '__main__':
+    main()

@@ -389,7 +389,10 @@ def test_a_command_ending_exactly_at_the_branch_point_keeps_the_last_verified_st
         assert 'at the critical point itself' in result.message, result.message
         assert abs(result.end.rho - 1.0) < 1e-8 and result.end.rho != 1.0
         assert result.final.stable
-        sim = Simulator([ModuleParams.paper(start)], [theta], [ModuleLimits(0.05, 1.95)])
+        # (no time budget: the command takes ~40 ms, near the default 50 ms per call, and
+        # under load its first call would return deferred; the outcome is what is tested)
+        sim = Simulator([ModuleParams.paper(start)], [theta], [ModuleLimits(0.05, 1.95)],
+                        time_budget=None)
         outcome = sim.command_rho(0, 1.0, 0)
         status = sim.status(0)
         assert outcome.status == 'failed' and sim.stable and status.level == 'warn'

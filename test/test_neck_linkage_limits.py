@@ -205,3 +205,30 @@ def test_a_jump_that_lands_past_its_fold_says_where_its_landing_is_an_equilibriu
     assert float(values['landing_m0_rho']) == 0.15
     assert float(values['m1_rho']) == float(values['rho'])
     assert f'an equilibrium at rho={landing:.6g}' in message.message
+
+
+def test_a_command_from_a_state_verified_on_the_commands_scale_is_not_refused():
+    """config/neck.yaml's modules after a seeded stream of round-number commands (seed 0,
+    stream 11 of benchmarks/bench_round_commands.py: m0 had been stopped flat at a linkage
+    limit and then flipped), m1's actuator 0.12 -> 0.06 m: the tracker's step towards a
+    branch point on lambda_min's linear law asks a nested tracker for the branch away from
+    it, whose own margin test (scaled to the state's stiffness, not the command start's)
+    refused that verified state; the TrackingError escaped the command, which failed as
+    'the start state is not a stable equilibrium' although the start was one (lambda_min
+    20.9 N/m).  It now ends ok on a stable equilibrium of the reference."""
+    module = lambda rho, load=0.0: ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
+                                                kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
+    start = Stack((module(0.06), module(0.12), module(0.14, -10.0)))
+    end = start.with_module(1, rho=0.06)
+    # the simulator's state (absolute rod angles, chord multipliers), as it held it
+    state = np.array([41938.62133894537, 43434.52924331135, -587.7159189593756,
+                      -578.5188129169165, -20442.630944396464, 21236.061250160812,
+                      -2.873990985436973, -2.1466265455692977])
+    held = track_stack(start, start, state).final
+    assert held.stable and held.eigenvalues[0] > 20.0
+    track = track_stack(start, end, held)
+    assert track.status == 'ok', track.message
+    assert track.final.stable
+    for jump in track.jumps:
+        assert_stable_for_the_reference(start, end, jump.to_theta, jump.s)
+    assert_stable_for_the_reference(start, end, track.final.theta, 1.0)

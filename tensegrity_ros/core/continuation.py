@@ -1013,7 +1013,13 @@ class _Tracker:
             away.normal_form_end = False
             away.stop_at_events = True      # a critical point on the way: not this branch
             away.contraction = PITCHFORK_CONTRACTION    # its steps are in the cubic valley
-            far = away.run(y, certificate=certificate)
+            try:
+                far = away.run(y, certificate=certificate)
+            except TrackingError:
+                # its own margin test (scaled to this state's stiffness, not to the
+                # command start's as this run's is) may refuse a state this run verified:
+                # then there is no far state (the error must not end the command)
+                return None
             if far.status != 'ok' or far.events or far.passages:
                 continue                # too short to leave the noise (or the wrong way)
             if far.eigenvalues[0] > margin * max(abs(far.eigenvalues[-1]), self.scale * 1e-3):

@@ -86,3 +86,31 @@ def test_lazy_angles_and_forces_are_those_of_a_fresh_evaluation():
                                    fresh.actuator_forces(record.state, 0.0), rtol=1e-12)
         np.testing.assert_allclose(record.nodes, fresh.nodes(record.state, 0.0), rtol=0,
                                    atol=1e-15)
+
+
+def test_a_record_keeps_rod_angles_within_a_turn_whatever_state_it_is_made_from():
+    """Landing flows can turn rods thousands of times (seen: 4.3e4 rad after a jump from a
+    module folded flat, bench_round_commands seed 0, stream 11); a kept state so large
+    loosens every later Newton stop (relative to 1 + |y|).  A record made from such a
+    state, or tracked from it, holds the same rods with angles within [-pi, pi], and
+    angles already within a turn are kept bit for bit."""
+    from tensegrity_ros.core.stack import Stack, settle_stack, stack_equilibrium_at, track_stack
+    stack = Stack(tuple(NECK))
+    settled = settle_stack(stack, NECK_THETA)
+    y = settled.state
+    n = 2 * len(NECK)
+    assert np.all(np.abs(y[:n]) <= math.pi)
+    assert np.array_equal(stack_equilibrium_at(stack, y).state, y)
+    turns = np.array([6913.0, -3.0, 1.0, 0.0, -6913.0, 2.0])
+    spun = y.copy()
+    spun[:n] += 2.0 * math.pi * turns
+    record = stack_equilibrium_at(stack, spun)
+    assert np.all(np.abs(record.state[:n]) <= math.pi)
+    np.testing.assert_allclose(record.state, y, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(record.eigenvalues, settled.eigenvalues, rtol=1e-9)
+    assert record.stable
+    moved = Stack(tuple(m.with_rho(m.rho + 2e-3) for m in NECK))
+    for start in (spun, record):
+        track = track_stack(stack, moved, start)
+        assert track.status == 'ok' and not track.jumps
+        assert np.all(np.abs(track.final.state[:n]) <= math.pi + 0.1)

@@ -793,6 +793,22 @@ class StackPath:
         y[:n] = (y[:n] + math.pi) % (2.0 * math.pi) - math.pi
         return y
 
+    def whole_turns_removed(self, y):
+        """``y`` with every rod angle beyond [-pi, pi] brought back by whole turns, the
+        others untouched bit for bit (``y`` itself where none is beyond).
+
+        A landing flow can turn a rod many times (seen: 4.3e4 rad after a jump from a
+        module folded flat); a state kept so loosens every later Newton stop, which is
+        relative to 1 + |y| (by 4e4 there: ~4e-7 rad), and the module's records are
+        wrapped too."""
+        n = self.topology.n_rods
+        turns = np.round(np.asarray(y[:n]) / (2.0 * math.pi))
+        if not turns.any():
+            return y
+        y = np.array(y, dtype=float)
+        y[:n] -= 2.0 * math.pi * turns
+        return y
+
     def linkage_limit(self, y, s):
         """A description of the linkage limit the state sits at, or '' if none.
 
@@ -956,6 +972,7 @@ class StackEquilibrium:
 
 
 def _record(path, y, s, eigenvalues=None, energy=None, residual=None, certificate=''):
+    y = path.whole_turns_removed(y)
     p = path.point(y, s)
     return StackEquilibrium(
         eigenvalues=path.eigenvalues_at(p) if eigenvalues is None else eigenvalues,
@@ -1060,8 +1077,8 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
         y0 = state_or_theta.state
     else:
         arr = np.asarray(state_or_theta, dtype=float)
-        y0 = arr if arr.shape == (path.size,) else path.state_from_angles(
-            _checked_angles(arr, len(start)), 0.0)
+        y0 = path.whole_turns_removed(arr) if arr.shape == (path.size,) else \
+            path.state_from_angles(_checked_angles(arr, len(start)), 0.0)
     known = (state_or_theta if isinstance(state_or_theta, StackEquilibrium)
              and state_or_theta.parameters == start._bytes else None)
     quick = whole_command_step(path, y0, settings, known)

@@ -794,15 +794,18 @@ class StackPath:
         return y
 
     def whole_turns_removed(self, y):
-        """``y`` with every rod angle beyond [-pi, pi] brought back by whole turns, the
-        others untouched bit for bit (``y`` itself where none is beyond).
+        """``y`` with every rod angle beyond [-3 pi, 3 pi] brought back to [-pi, pi] by
+        whole turns, the others untouched bit for bit (``y`` itself where none is beyond).
 
         A landing flow can turn a rod many times (seen: 4.3e4 rad after a jump from a
         module folded flat); a state kept so loosens every later Newton stop, which is
-        relative to 1 + |y| (by 4e4 there: ~4e-7 rad), and the module's records are
-        wrapped too."""
+        relative to 1 + |y| (by 4e4 there: ~4e-7 rad).  Within 3 pi it is loosened at most
+        ~10-fold, and such a state is left as it is: a state 1e-11 in s past a branch
+        point is sensitive to the last bit of its angles (rounding amplified by
+        1 / lambda_min), so wrapping every one would move those answers."""
         n = self.topology.n_rods
-        turns = np.round(np.asarray(y[:n]) / (2.0 * math.pi))
+        angles = np.asarray(y[:n])
+        turns = np.where(np.abs(angles) > 3.0 * math.pi, np.round(angles / (2.0 * math.pi)), 0.0)
         if not turns.any():
             return y
         y = np.array(y, dtype=float)

@@ -5,10 +5,11 @@ What a user types (issue 10): seeded streams of actuator targets from 0.05 to 0.
 steps of 1 cm (one module, or all three at once) and head loads (-10 .. +1 N), 15
 commands per stream, each from where the last one left the neck, through the core
 :class:`~tensegrity_ros.core.simulator.Simulator` (no ROS) with no time budget, so every
-command is one deterministic call.  A command that stops early is a tracking failure
-(state kept, the reason in its text); they are counted by reason, with the slowest
-command.  A command running longer than ``--limit`` seconds is stopped (SIGALRM) and
-its stream ends there.  No target: a measurement of what is left to fix (session 9:
+command is one deterministic call.  A stream's commands are drawn up front, so one
+stream does not depend on where an earlier one stopped.  A command that stops early is
+a tracking failure (state kept, the reason in its text); they are counted by reason,
+with the slowest command.  A command running longer than ``--limit`` seconds is stopped
+(SIGALRM) and its stream ends there.  No target: a measurement of what is left to fix (session 9:
 seed 0 gave 11 failures besides linkage limits and one command over 20 s).
 
     python benchmarks/bench_round_commands.py [--seeds 0 1] [--streams 25] [--limit 20]
@@ -47,30 +48,49 @@ def reason(text):
     return re.sub(r'[-+]?\d[\d.e+-]*', '#', text)[:70]
 
 
-def stream(config, rng, count, limit):
-    """One stream: (failures [(reason, text, command)], slowest finished (s, command),
-    the command stopped at the limit or None)."""
-    modules = [m.params for m in config.modules]
-    limits = [ModuleLimits(m.rho_min, m.rho_max) for m in config.modules]
-    sim = Simulator(modules, [m.initial_theta for m in config.modules], limits=limits,
-                    time_budget=None)
-    failures, slowest = [], (0.0, None)
+def commands(rng, count):
+    """A stream's commands, all drawn up front (so later streams do not depend on where
+    an earlier one stopped): ('rho_cmd', module, rho), ('joint_commands', {module: rho})
+    or ('head load', N)."""
+    drawn = []
     for _ in range(count):
         kind = rng.random()
         if kind < 0.4:
-            command = ('rho_cmd', rng.randrange(3), rng.choice(TARGETS))
-            call = lambda: sim.command_rho(command[1], command[2], 0)
+            drawn.append(('rho_cmd', rng.randrange(3), rng.choice(TARGETS)))
         elif kind < 0.7:
-            command = ('joint_commands', {i: rng.choice(TARGETS) for i in range(3)})
-            call = lambda: sim.command_rhos(command[1], 0)
+            drawn.append(('joint_commands', {i: rng.choice(TARGETS) for i in range(3)}))
         else:
-            command = ('head load', rng.choice(LOADS))
-            call = lambda: sim.set_parameters({2: dict(f3y=command[1], f4y=command[1])}, 0,
-                                              'force')
+            drawn.append(('head load', rng.choice(LOADS)))
+    return drawn
+
+
+def simulator(config):
+    """config/neck.yaml's neck in the core simulator, with no time budget."""
+    modules = [m.params for m in config.modules]
+    limits = [ModuleLimits(m.rho_min, m.rho_max) for m in config.modules]
+    return Simulator(modules, [m.initial_theta for m in config.modules], limits=limits,
+                     time_budget=None)
+
+
+def apply(sim, command):
+    """Send one command to the simulator: its Outcome."""
+    if command[0] == 'rho_cmd':
+        return sim.command_rho(command[1], command[2], 0)
+    if command[0] == 'joint_commands':
+        return sim.command_rhos(command[1], 0)
+    return sim.set_parameters({2: dict(f3y=command[1], f4y=command[1])}, 0, 'force')
+
+
+def stream(config, rng, count, limit):
+    """One stream: (failures [(reason, text, command)], slowest finished (s, command),
+    the command stopped at the limit or None)."""
+    sim = simulator(config)
+    failures, slowest = [], (0.0, None)
+    for command in commands(rng, count):
         start = time.process_time()
         signal.alarm(limit)
         try:
-            outcome = call()
+            outcome = apply(sim, command)
         except TooLong:
             return failures, slowest, command
         finally:

@@ -807,13 +807,17 @@ class _Tracker:
         the landed state is followed back along its own branch to the end point.
         """
         problem = self.problem
-        if kind == BRANCH_POINT:
-            buckled = self.buckled_minimum(s_star, y_star, s_end)
-            if buckled is not None:             # supercritical: no jump, the state goes on
-                y_end, s_at, passed = buckled
-                if passed:
-                    self.passages.append((s_star, y_star))
-                return y_end, s_at, None
+        # Tried at a fold too: its branch turns back at s*, so no state along its mode
+        # lies past s* there; where one does, the point was a branch point whose fold
+        # test |psi . F_s| is ill-conditioned (next to a linkage limit a chord's multiplier
+        # amplifies a 1e-5 asymmetry of the mode ~1e6-fold: 2.6e-3 against branch_tol 1e-6
+        # at a symmetric neck's pitchfork 1e-4 in s before a module folds flat).
+        buckled = self.buckled_minimum(s_star, y_star, s_end)
+        if buckled is not None:                 # supercritical: no jump, the state goes on
+            y_end, s_at, passed = buckled
+            if passed:
+                self.passages.append((s_star, y_star))
+            return y_end, s_at, None
         offset = self.landing_offset(kind, y_star, s_star)
         s_land = s_star + offset
         if s_land > s_end and not _admissible(problem, s_land):

@@ -12,7 +12,15 @@ with the slowest command.  A command running longer than ``--limit`` seconds is 
 (SIGALRM) and its stream ends there.  No target: a measurement of what is left to fix (session 9:
 seed 0 gave 11 failures besides linkage limits and one command over 20 s).
 
+With ``--reference`` every command that ends ok is also compared with the independent
+quasi-static path of test/reference_paths.py (the overdamped mechanism, gradient flows
+with jumps bisected), started from the same state: the same jumps (number, and s within
+1e-6) and the same end state within 1e-6 rad (or its mirror image: the neck is
+mirror-symmetric, and either side of a symmetric pitchfork is right).  Slow (the
+reference takes seconds to a minute a command); disagreements are listed.
+
     python benchmarks/bench_round_commands.py [--seeds 0 1] [--streams 25] [--limit 20]
+                                              [--first 0] [--reference]
 """
 import argparse
 import collections
@@ -20,10 +28,14 @@ import os
 import random
 import re
 import signal
+import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from tensegrity_ros.core.events import TrackingFailure
+from tensegrity_ros.core.stack import Stack, track_stack
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 from tensegrity_ros.params_file import load_stack_config
 
@@ -81,25 +93,58 @@ def apply(sim, command):
     return sim.set_parameters({2: dict(f3y=command[1], f4y=command[1])}, 0, 'force')
 
 
-def stream(config, rng, count, limit):
+def compared_with_reference(start, end, held, limit):
+    """'agree', 'differ: ...' or 'no reference: ...' for the command from ``held`` (a
+    verified state of ``start``) to ``end``, tracked here and by the reference."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
+    from reference_paths import NeckSystem, angle_distance, quasi_static_path
+    track = track_stack(start, end, held)
+    if track.status != 'ok':
+        return 'agree'                          # a stated give-up: counted as a failure
+    signal.alarm(limit)
+    try:
+        ref = quasi_static_path(NeckSystem(start.modules, end.modules), np.ravel(held.theta))
+    except TooLong:
+        return 'no reference: over the limit'
+    except Exception as error:                  # the reference's own give-up
+        return f'no reference: {type(error).__name__}'
+    finally:
+        signal.alarm(0)
+    final = np.ravel(track.final.theta)
+    mirror = final.reshape(-1, 2)[:, ::-1].ravel()
+    distance = min(angle_distance(final, ref.final), angle_distance(mirror, ref.final))
+    mine, theirs = [float(j.s) for j in track.jumps], [float(j.s) for j in ref.jumps]
+    if (distance < 1e-6 and len(mine) == len(theirs)
+            and all(abs(a - b) < 1e-6 for a, b in zip(mine, theirs))):
+        return 'agree'
+    return (f'differ: jumps at s {[round(a, 7) for a in mine]}, reference '
+            f'{[round(b, 7) for b in theirs]}; end states {distance:.2g} rad apart')
+
+
+def stream(config, rng, count, limit, reference=False):
     """One stream: (failures [(reason, text, command)], slowest finished (s, command),
-    the command stopped at the limit or None)."""
+    the command stopped at the limit or None, reference comparisons [(verdict, command)])."""
     sim = simulator(config)
-    failures, slowest = [], (0.0, None)
+    failures, slowest, compared = [], (0.0, None), []
     for command in commands(rng, count):
+        before = (Stack(tuple(sim.modules)), sim.state)
         start = time.process_time()
         signal.alarm(limit)
         try:
             outcome = apply(sim, command)
         except TooLong:
-            return failures, slowest, command
+            return failures, slowest, command, compared
         finally:
             signal.alarm(0)
         spent = time.process_time() - start
         slowest = max(slowest, (spent, command), key=lambda t: t[0])
         failures += [(reason(e.text), e.text, command) for e in outcome.events
                      if isinstance(e, TrackingFailure)]
-    return failures, slowest, None
+        if reference:
+            end = Stack(tuple(sim.modules))
+            compared.append((compared_with_reference(before[0], end, before[1], 4 * limit),
+                             command))
+    return failures, slowest, None, compared
 
 
 def main():
@@ -108,14 +153,26 @@ def main():
     parser.add_argument('--streams', type=int, default=25)
     parser.add_argument('--commands', type=int, default=15)
     parser.add_argument('--limit', type=int, default=20, help='s per command')
+    parser.add_argument('--first', type=int, default=0, help='skip the streams before it')
+    parser.add_argument('--reference', action='store_true',
+                        help='compare every command with the independent reference (slow)')
     args = parser.parse_args()
     signal.signal(signal.SIGALRM, _too_long)
     config = load_stack_config(str(CONFIG))
     for seed in args.seeds:
         rng = random.Random(seed)
         counts, examples, slow, worst = collections.Counter(), {}, [], (0.0, None)
+        verdicts = collections.Counter()
         for index in range(args.streams):
-            failures, slowest, stopped = stream(config, rng, args.commands, args.limit)
+            if index < args.first:
+                commands(rng, args.commands)
+                continue
+            failures, slowest, stopped, compared = stream(config, rng, args.commands,
+                                                          args.limit, args.reference)
+            for verdict, command in compared:
+                verdicts[verdict.split(':')[0]] += 1
+                if verdict != 'agree':
+                    print(f'  stream {index}, {command}: {verdict}', flush=True)
             for kind, text, command in failures:
                 counts[kind] += 1
                 examples.setdefault(kind, (index, command, text))
@@ -130,6 +187,8 @@ def main():
             print(f'  {n:3d} x {kind}\n        e.g. stream {index}, {command}: {text[:160]}')
         for index, command in slow:
             print(f'  over {args.limit} s: stream {index}, {command} (the stream ends there)')
+        if args.reference:
+            print(f'  against the reference: {dict(verdicts)}')
 
 
 if __name__ == '__main__':

@@ -232,3 +232,42 @@ def test_a_command_from_a_state_verified_on_the_commands_scale_is_not_refused():
     for jump in track.jumps:
         assert_stable_for_the_reference(start, end, jump.to_theta, jump.s)
     assert_stable_for_the_reference(start, end, track.final.theta, 1.0)
+
+
+def neck_yaml(rhos, head=0.0):
+    """config/neck.yaml's modules at actuator lengths ``rhos``, ``head`` N at each top node."""
+    module = lambda rho, load=0.0: ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
+                                                kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
+    return Stack((module(rhos[0]), module(rhos[1]), module(rhos[2], head)))
+
+
+@pytest.mark.parametrize('rhos, theta, index, rho, s_fold', [
+    # bench_round_commands seed 0, stream 8: m1 0.08 -> 0.15 m folds 1.1e-4 m short of
+    # m1's linkage limit (rho1 + rho2 = 0.24), m1 0.031 rad from flat
+    ((0.06, 0.08, 0.12), [[0.948, 0.948], [-0.586, -0.586], [-0.383, -0.383]], 1, 0.15,
+     0.5698197),
+    # stream 16: m2 0.13 -> 0.15 m, m0 hanging down, folds 1.2e-4 m short of m1's
+    # linkage limit, m1 0.031 rad from flat
+    ((0.09, 0.09, 0.13), [[-1.571, -1.571], [0.411, 0.411], [0.250, 0.250]], 2, 0.15,
+     0.9940939)])
+def test_a_fold_next_to_a_flat_module_lands(rhos, theta, index, rho, s_fold):
+    """config/neck.yaml's modules, head pushed down 2 N, driven to a fold next to a module
+    folded almost flat: was 'could not land after the fold'.  Near the flat module the
+    landing flow's damped projection treats the chords as slightly elastic; it came to
+    rest ~5e-5 m off the constraints on the mirror-symmetric state, whose projection
+    Newton took to the symmetric saddle, and every push-off flowed back there.  The flow
+    now goes on rigid from such a rest point: one fold, landing on a stable equilibrium
+    of the reference (at the fold, or where the jump says its landing is one), the
+    command ending ok on one."""
+    start = neck_yaml(rhos, -2.0)
+    end = start.with_module(index, rho=rho)
+    state = settle_stack(start, np.array(theta))
+    track = track_stack(start, end, state)
+    assert track.status == 'ok', track.message
+    assert [j.kind for j in track.jumps] == ['fold']
+    jump = track.jumps[0]
+    assert abs(jump.s - s_fold) < 1e-6
+    assert angle_distance(np.ravel(jump.to_theta), np.ravel(jump.from_theta)) > 1e-3
+    landing_s = (jump.landing_stack.modules[index].rho - rhos[index]) / (rho - rhos[index])
+    assert_stable_for_the_reference(start, end, jump.to_theta, landing_s)
+    assert_stable_for_the_reference(end, end, track.final.theta, 0.0)

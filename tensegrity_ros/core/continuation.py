@@ -1167,9 +1167,14 @@ class _Tracker:
         Integrated by scipy's LSODA stepper (stiff-capable: the flow is slow near
         the ghost of a fold and fast elsewhere), stopping at the first step where
         the velocity is negligible.  At rest on a minimum the state is polished;
-        at rest on a saddle it is pushed off along the unstable mode.
+        at rest on a saddle it is pushed off along the unstable mode.  Where it rests
+        off the constraints (the problem's ``descent`` may treat them as slightly
+        elastic, to glide through kinematic singularities), the attempts left flow
+        by its optional ``rigid_descent``, which rests only on equilibria of the model.
         """
         problem = self.problem
+        flow = [problem.descent]
+        rigid = getattr(problem, 'rigid_descent', None)
         # Far below any velocity met on the way (near a fold's ghost the landing
         # offset keeps it above ~1e-7 scale), so the flow stops only at rest.
         tol = 1e-10 * self.scale
@@ -1181,16 +1186,18 @@ class _Tracker:
                 raise _FlowBudgetExceeded
             if budget[0] % 8 == 0:  # inside a solver step too: a neck's takes ~30
                 checkpoint()        # evaluations (scipy >= 1.17's LSODA is re-entrant)
-            return problem.descent(v, s)
+            return flow[0](v, s)
 
         for _ in range(4):
             try:
-                y = self.flow_to_rest(velocity, y, tol)
+                rest = self.flow_to_rest(velocity, y, tol)
             except _FlowBudgetExceeded:
                 return None
-            if y is None:
+            if rest is None:
                 return None
-            y = problem.project(y, s)
+            y = problem.project(rest, s)
+            if rigid is not None and self.step_norm(y - rest) > self.settings.same_state_tol:
+                flow[0] = rigid
             polished = self.newton(y, s)
             if polished is None or (self.step_norm(polished - y) >= 1e-2
                                     and not self.downhill(y, polished, s)):
@@ -1291,6 +1298,8 @@ class _Segment:
         for name in ('state_weights', 'canonical'):
             if hasattr(problem, name):
                 setattr(self, name, getattr(problem, name))
+        if hasattr(problem, 'rigid_descent'):
+            self.rigid_descent = lambda y, t: problem.rigid_descent(y, self.at(t))
         if hasattr(problem, 'eigenvalues'):
             self.eigenvalues = lambda y, t: problem.eigenvalues(y, self.at(t))
 

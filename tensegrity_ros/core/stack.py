@@ -766,6 +766,34 @@ class StackPath:
         correction = np.linalg.solve(gram, jc @ free - rate * p.constraints(self))
         return np.concatenate([-free + mobility_jc @ correction, np.zeros_like(p.mu)])
 
+    def rigid_descent(self, y, s):
+        """:meth:`descent` with the force projected exactly (through a null basis of the
+        constraints, not the damped Gram inverse), so that it rests only where the
+        rigid-chord model is in equilibrium; only the pull onto the constraints is damped.
+
+        Near a module folded almost flat (the Gram matrix's smallest eigenvalue below
+        ``_DAMPING_ONSET``) :meth:`descent` damps the projection too: it glides through
+        the kinematic singularity as a neck of slightly elastic chords would, but rests
+        there off the constraints by ~damping * chord force / rate (5e-5 m on
+        config/neck.yaml), where no Newton from its projection may find the landing.
+        The tracker's landing flow goes on with this one from such a rest point."""
+        p = self.point(y, s)
+        metric = p.metric(self)
+        gradient = self._unconstrained_gradient(p)
+        if not self.topology.n_chords:
+            return -np.linalg.solve(metric, gradient)
+        jc = p.constraint_jacobian(self)
+        z = _null_basis(jc)
+        tangential = z @ np.linalg.solve(z.T @ metric @ z, z.T @ gradient)
+        mobility_jc = np.linalg.solve(metric, jc.T)
+        gram = jc @ mobility_jc
+        smallest = np.linalg.eigvalsh(gram)[0]
+        if smallest < _DAMPING_ONSET:
+            gram = gram + _DAMPING * (1.0 - smallest / _DAMPING_ONSET) ** 2 * np.eye(len(jc))
+        rate = float(np.max(p.values.k)) * 2.0
+        pull = mobility_jc @ np.linalg.solve(gram, rate * p.constraints(self))
+        return np.concatenate([-tangential - pull, np.zeros_like(p.mu)])
+
     def project(self, y, s):
         """Nearest admissible rod angles (Gauss-Newton in the node metric) and
         least-squares multipliers."""

@@ -271,3 +271,28 @@ def test_a_fold_next_to_a_flat_module_lands(rhos, theta, index, rho, s_fold):
     landing_s = (jump.landing_stack.modules[index].rho - rhos[index]) / (rho - rhos[index])
     assert_stable_for_the_reference(start, end, jump.to_theta, landing_s)
     assert_stable_for_the_reference(end, end, track.final.theta, 0.0)
+
+
+def test_a_command_from_two_flat_modules_leaves_them():
+    """config/neck.yaml's modules, no head load, as a seeded stream left them (bench_round_
+    commands seed 0, stream 19: a command stopped at module 0's linkage limit), module 0
+    flat (5.7e-11 rad) and module 1 at its own limit (rho0 + rho1 = rho1 + rho2 = 0.24);
+    joint_commands {0.12, 0.09, 0.12} takes both away from their limits.  The minimum
+    just past the flat state was found at the start's stiffness scale, inflated by the
+    chord force (lambda_max 4.4e10 N/m; 7.3e3 N/m there), so Newton stopped 0.14 N from
+    equilibrium, 9e-5 rad off it, and every step from there was 'far': was 'step size
+    underflow at s=1e-06 (far)'.  Now ok, each landing and the end stable for the
+    reference."""
+    start = neck_yaml((0.11375000000000107, 0.12624999999999892, 0.1137499999999995))
+    state = np.array([5.710242027633342e-11, 3.141592653532572, -0.007977820282589513,
+                      3.1418005516052805, 0.3023670678687126, 2.822824334879997,
+                      226481513.07760066, -0.9786008860000873])
+    held = track_stack(start, start, state).final
+    assert held.stable and np.max(np.abs(held.theta[0])) < 1e-9
+    end = neck_yaml((0.12, 0.09, 0.12))
+    track = track_stack(start, end, held)
+    assert track.status == 'ok', track.message
+    for jump in track.jumps:
+        s = (jump.landing_stack.modules[0].rho - start.modules[0].rho) / (0.12 - start.modules[0].rho)
+        assert_stable_for_the_reference(start, end, jump.to_theta, s)
+    assert_stable_for_the_reference(end, end, track.final.theta, 0.0)

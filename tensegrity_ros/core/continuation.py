@@ -703,6 +703,8 @@ class _Tracker:
             return None
         offset = min(self.settings.linkage_offset, s_end - s)
         near = self.nearest_minimum(y, s + offset)
+        if near is not None:
+            near = self.at_own_scale(near, s + offset)
         if near is None:
             return None
         # where the minimum goes on, it is ~0.1 as far at 0.01 of the offset (a square
@@ -720,6 +722,24 @@ class _Tracker:
                 or self.separation(closer, y) > 0.3 * distance + self.settings.same_state_tol):
             return None
         return near, s + offset, None
+
+    def at_own_scale(self, y, s):
+        """A minimum found at this run's stiffness scale, polished by Newton and verified
+        at its own (the scale :meth:`rescale` sets once the run is there), or ``None``.
+
+        At a linkage limit the scale is inflated by the chord force (lambda_max 4.4e10 N/m
+        at config/neck.yaml's module 0 flat with no load, 7.3e3 N/m 1e-6 in s past it), and
+        so is the residual tolerance: Newton stopped there on a state 0.14 N from
+        equilibrium, 9e-5 rad off the minimum, from which every step was 'far'."""
+        kept = self.scale
+        self.rescale(self.eigenvalues(y, s))
+        try:
+            polished = self.newton(y, s)
+            if polished is None or not self.definite(self.eigenvalues(polished, s)):
+                return None
+            return polished
+        finally:
+            self.scale = kept
 
     def end_at_rounding(self, y, s, s_end):
         """The branch ends within rounding of (y, s): land as from a critical point there,

@@ -1122,17 +1122,20 @@ class _Tracker:
         """Step off along the critical mode at frozen s_land and slide: (landing, ambiguous, s_land).
 
         With ``s_end`` given, a flow that finds no minimum (it rests on saddles near
-        the fold's ghost) is retried frozen further past the event, up to 1e-3 in s.
+        the fold's ghost) is retried frozen further past the event, up to 1e-3 in s
+        (compared as the s it was set to: (s* + 1e-3) - s* may round below 1e-3, and
+        the retries then never ended, e.g. s* = 0.999638580089214).
         """
+        last = s_star + 1e-3
         while True:
             try:
                 return (*self._land_once(kind, s_star, y_star, s_land), s_land)
             except TrackingError:
                 further = s_star + 100.0 * (s_land - s_star)
-                if s_end is None or s_land - s_star >= 1e-3 or (
+                if s_end is None or s_land >= last or (
                         further > s_end and not _admissible(self.problem, further)):
                     raise
-                s_land = min(further, s_star + 1e-3)
+                s_land = min(further, last)
 
     def _land_once(self, kind, s_star, y_star, s_land):
         problem = self.problem

@@ -255,8 +255,8 @@ def test_a_fold_next_to_a_flat_module_lands(rhos, theta, index, rho, s_fold):
     folded almost flat: was 'could not land after the fold'.  Near the flat module the
     landing flow's damped projection treats the chords as slightly elastic; it came to
     rest ~5e-5 m off the constraints on the mirror-symmetric state, whose projection
-    Newton took to the symmetric saddle, and every push-off flowed back there.  The flow
-    now goes on rigid from such a rest point: one fold, landing on a stable equilibrium
+    Newton took to the symmetric saddle, and every push-off flowed back there.  Such a
+    flow now starts over rigid: one fold, landing on a stable equilibrium
     of the reference (at the fold, or where the jump says its landing is one), the
     command ending ok on one."""
     start = neck_yaml(rhos, -2.0)
@@ -296,3 +296,23 @@ def test_a_command_from_two_flat_modules_leaves_them():
         s = (jump.landing_stack.modules[0].rho - start.modules[0].rho) / (0.12 - start.modules[0].rho)
         assert_stable_for_the_reference(start, end, jump.to_theta, s)
     assert_stable_for_the_reference(end, end, track.final.theta, 0.0)
+
+
+def test_a_settle_next_to_a_flat_module_rests_where_the_reference_flow_does():
+    """config/neck.yaml's modules, no head load, module 0 4e-4 rad from flat and module 1
+    at its own linkage limit (the state a stream left: bench_round_commands seed 0, stream
+    19, before the scale fix above); the next command settled from there.  The landing
+    flow's damped projection (elastic chords) rested 1e-4 m off the constraints, whose
+    projection Newton took to a saddle: was 'no stable equilibrium reached from the given
+    state'; going on rigid from that rest point then rested elsewhere (module 0 0.014 rad
+    from where the rigid flow goes).  The flow now starts over rigid: it rests where the
+    reference's flow does."""
+    from reference_paths import settle_reference
+    stack = neck_yaml((0.11375000625, 0.12624996375, 0.11375000625))
+    theta = np.array([[0.0004, 0.0003], [-0.0079, -0.0002], [0.3106, 0.3106]])
+    got = settle_stack(stack, theta)
+    assert got.stable
+    reference = settle_reference(NeckSystem(stack.modules), theta.ravel())
+    assert not reference.ambiguous
+    assert angle_distance(np.ravel(got.theta), reference.state) < 1e-9
+    assert_stable_for_the_reference(stack, stack, got.theta, 0.0)

@@ -1192,8 +1192,9 @@ class _Tracker:
         the velocity is negligible.  At rest on a minimum the state is polished;
         at rest on a saddle it is pushed off along the unstable mode.  Where it rests
         off the constraints (the problem's ``descent`` may treat them as slightly
-        elastic, to glide through kinematic singularities), the attempts left flow
-        by its optional ``rigid_descent``, which rests only on equilibria of the model.
+        elastic, to glide through kinematic singularities), it flowed in another model:
+        the flow starts over from the same state by the problem's optional
+        ``rigid_descent``, which rests only on equilibria of the model itself.
         """
         problem = self.problem
         flow = [problem.descent]
@@ -1211,16 +1212,19 @@ class _Tracker:
                 checkpoint()        # evaluations (scipy >= 1.17's LSODA is re-entrant)
             return flow[0](v, s)
 
-        for _ in range(4):
+        for _ in range(5):
             try:
                 rest = self.flow_to_rest(velocity, y, tol)
             except _FlowBudgetExceeded:
                 return None
             if rest is None:
                 return None
-            y = problem.project(rest, s)
-            if rigid is not None and self.step_norm(y - rest) > self.settings.same_state_tol:
-                flow[0] = rigid
+            projected = problem.project(rest, s)
+            if (rigid is not None and flow[0] is not rigid
+                    and self.step_norm(projected - rest) > self.settings.same_state_tol):
+                flow[0] = rigid             # it rested as elastic chords: the same flow, rigid
+                continue
+            y = projected
             polished = self.newton(y, s)
             if polished is None or (self.step_norm(polished - y) >= 1e-2
                                     and not self.downhill(y, polished, s)):

@@ -776,7 +776,7 @@ class StackPath:
         the kinematic singularity as a neck of slightly elastic chords would, but rests
         there off the constraints by ~damping * chord force / rate (5e-5 m on
         config/neck.yaml), where no Newton from its projection may find the landing.
-        The tracker's landing flow goes on with this one from such a rest point."""
+        The tracker's landing flow starts over with this one where it rested so."""
         p = self.point(y, s)
         metric = p.metric(self)
         gradient = self._unconstrained_gradient(p)

@@ -316,3 +316,28 @@ def test_a_settle_next_to_a_flat_module_rests_where_the_reference_flow_does():
     assert not reference.ambiguous
     assert angle_distance(np.ravel(got.theta), reference.state) < 1e-9
     assert_stable_for_the_reference(stack, stack, got.theta, 0.0)
+
+
+def test_a_landing_by_a_module_at_its_linkage_limit_is_the_reference_paths():
+    """config/neck.yaml's modules as a seeded stream left them (bench_round_commands seed
+    0, stream 10: commands stopped at module 0's linkage limit, rho0 + rho1 = 0.24, and
+    at a fold), head load -0.047 -> -10 N: the neck folds at s = 0.0823 with module 0 on
+    one branch of its crossing at flat (-0.038, -0.0011 rad).  The elastic-chord flow
+    rested 5.6e-5 m off the constraints; the rigid one, integrated as loosely as the
+    elastic one, rested at the crossing or went through it onto the mirror branch (the
+    way turns on ~1e-7 of it).  Was 'could not land after the fold'.  Now the jump lands
+    where the reference's quasi-static path does, and so does the command."""
+    rhos, load = (0.12714285714285406, 0.11285714285714055, 0.11), -0.04680362720831721
+    at = lambda s: neck_yaml(rhos, load + s * (-10.0 - load))       # noqa: E731
+    start = at(0.0)
+    state = np.array([-0.014637887761961775, 3.1420287001042175, 0.36509384119798977,
+                      2.746184073161542, 0.38380108303212673, 2.7273323792052877,
+                      -0.9784359822956004, 1.0726442579687958])
+    held = track_stack(start, start, state).final
+    assert held.stable
+    mine = track_stack(start, at(1.0), held)
+    assert mine.status == 'ok', mine.message
+    ref = quasi_static_path(NeckSystem(start.modules, at(1.0).modules), np.ravel(held.theta))
+    assert [j.kind for j in mine.jumps] == [j.kind for j in ref.jumps] == ['fold']
+    assert angle_distance(np.ravel(mine.jumps[0].to_theta), ref.jumps[0].landing) < 1e-3
+    assert angle_distance(np.ravel(mine.final.theta), ref.final) < 1e-9

@@ -107,6 +107,11 @@ class TrackerSettings:
     newton_iterations: int = 12
     #: Below this |psi . F_s| / |F_s| the critical point is a branch point.
     branch_tol: float = 1e-6
+    #: A fold with |psi . F_s| / |F_s| below this is first tried as a branch point (is the
+    #: minimum going on past it, buckled?): next to a module folded almost flat the
+    #: critical mode is that inexact (config/neck.yaml's mirror-symmetric pitchforks
+    #: 1e-4 in rho short of a linkage limit: 4.9e-6 .. 1.1e-4; folds there: >= 4.5e-2).
+    near_branch_tol: float = 1e-3
     #: The mechanism lands with the parameters frozen this far past the event (in s,
     #: at least; made larger where the command is short, see ``_landing_offset``).
     landing_offset: float = 1e-7
@@ -827,7 +832,7 @@ class _Tracker:
         the landed state is followed back along its own branch to the end point.
         """
         problem = self.problem
-        if kind == BRANCH_POINT:
+        if kind == BRANCH_POINT or self.near_branch_point(y_star, s_star):
             buckled = self.buckled_minimum(s_star, y_star, s_end)
             if buckled is not None:             # supercritical: no jump, the state goes on
                 y_end, s_at, passed = buckled
@@ -852,6 +857,11 @@ class _Tracker:
         at_event, s_at = self.landing_at_event(landing, s_land, s_star)
         return landing, s_land, Event(kind=kind, s=s_star, state=y_star, landing_s=s_at,
                                       landing=at_event, ambiguous=ambiguous)
+
+    def near_branch_point(self, y_star, s_star):
+        """Whether a critical point is orthogonal to F_s within ``near_branch_tol``."""
+        _, psi = self.critical(y_star, s_star)
+        return self.orthogonality(y_star, s_star, psi) < self.settings.near_branch_tol
 
     def at_the_critical_point(self, s_star, s_end):
         """What to add to a failure after the critical point at s* where the command ends
@@ -891,6 +901,10 @@ class _Tracker:
             psi = -psi
         direction = np.append(psi, 0.0)
         amplitude = self.settings.step_off / max(self.step_norm(psi), 1e-300)
+        for _ in range(5):      # lost there: shorter (config/neck.yaml's buckled branch
+            if self.arc_point(y_star, s_star, direction, amplitude) is not None:
+                break           # 3.6e-4 in s short of two linkage limits: from 3e-4 rad)
+            amplitude *= 0.25
         for _ in range(6):
             found = self.arc_point(y_star, s_star, direction, amplitude)
             if found is None or not found[1] > s_star:

@@ -357,3 +357,30 @@ def test_a_landing_by_a_module_at_its_linkage_limit_is_the_reference_paths():
     assert [j.kind for j in mine.jumps] == [j.kind for j in ref.jumps] == ['fold']
     assert angle_distance(np.ravel(mine.jumps[0].to_theta), ref.jumps[0].landing) < 1e-3
     assert angle_distance(np.ravel(mine.final.theta), ref.final) < 1e-9
+
+
+def test_a_module_driven_flat_under_load_stops_at_its_linkage_limit():
+    """config/neck.yaml's modules, head pushed down 10 N, joint_commands {0.10, 0.15, 0.06}
+    from {0.06, 0.06, 0.14} (bench_round_commands seed 0, stream 11): module 0 is driven
+    flat (rho0 + rho1 = 0.24 at s = 12/13) with the load along the fold, its chord force
+    growing ~1/angle.  The steps underflowed 1e-8 in s short of it, 1e-4 rad from flat
+    (chord force 8.4e4 N), where the equilibrium equations are singular to rounding (the
+    Jacobian's singular values 1.3e-12 .. 1e5) at a minimum (lambda_min 183 N/m): was
+    'step size underflow (newton)'.  It is the linkage limit (the model's own: no minimum
+    goes on continuously, the rigid chord does not say where the neck goes), said so."""
+    start = neck_yaml((0.06, 0.06, 0.14), -10.0)
+    # the simulator's state as the stream left it: its rod angles wound up to ~4e4 rad
+    # (7e-12 rad apart in floating point), which is what stopped the steps that early
+    state = np.array([41935.02593766776, 43431.47123832769, -590.033733331424,
+                      -581.7803264575689, -20445.955874025265, 21234.4956300763,
+                      3.531982553097078, -0.14649542490653558])
+    held = track_stack(start, start, state).final
+    assert held.stable
+    end = neck_yaml((0.10, 0.15, 0.06), -10.0)
+    got = track_stack(start, end, held)
+    assert got.status == 'failed'
+    assert 'linkage limit' in got.message and 'module 0 folded flat' in got.message, got.message
+    s_final = (got.end.modules[0].rho - 0.06) / 0.04
+    assert abs(s_final - 12.0 / 13.0) < 1e-7
+    assert angle_distance(got.final.theta[0], np.zeros(2)) < 1e-3
+    assert got.final.stable

@@ -40,7 +40,7 @@ from . import continuation as _continuation
 from .continuation import TrackerSettings
 from .module import ModuleParams, PARAMETER_NAMES, InvalidParameterError
 from .stack_fast_step import keep_final_point, whole_command_step
-from .tolerances import verified_minimum
+from .tolerances import DEFINITENESS_TOL, verified_minimum
 
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
 _PARAMETERS_OF = operator.attrgetter(*PARAMETER_NAMES)     # a module's parameters, in order
@@ -829,16 +829,35 @@ class StackPath:
         module).  Two branches of configurations cross there, so the equilibrium
         equations are singular although the state may be a strict minimum, and the
         chord's force grows without bound where the load pushes along the fold (see
-        ``_Tracker.through_linkage_limit``)."""
+        ``_Tracker.through_linkage_limit``).  So a module nearly flat where the equations
+        are singular to rounding at a minimum is at its limit too (:meth:`_unresolved`)."""
         if not self.topology.n_chords:
             return ''
         jc = self.point(y, s).constraint_jacobian(self)
-        if np.linalg.svd(jc, compute_uv=False)[-1] >= LINKAGE_LIMIT_TOL * self.l_ref:
+        smallest = np.linalg.svd(jc, compute_uv=False)[-1]
+        if smallest >= LINKAGE_LIMIT_TOL * self.l_ref and not self._unresolved(y, s, smallest):
             return ''
         i = int(np.argmin(np.linalg.norm(jc, axis=1)))
         force = abs(float(y[self.topology.n_rods + i])) * self.f_ref
         return (f'module {i} folded flat onto its top chord (its rods and chord in one '
                 f'line; chord force {force:.3g} N)')
+
+    def _unresolved(self, y, s, smallest):
+        """Whether a chord's gradient ``smallest`` is small (< 1e-2 l_ref) and the KKT
+        Jacobian singular to rounding (smallest singular value < 1e-15 of its largest)
+        where the reduced Hessian passes the margin test: a KKT matrix is singular only
+        where its reduced Hessian or its constraint Jacobian is, so the chords are.  A
+        module driven flat under load, its chord force growing ~1/angle, is resolved
+        only so far: config/neck.yaml under a -10 N head load stopped 1e-4 rad from flat,
+        1.3e-9 m short of rho0 + rho1 = 0.24, chord force 8.4e4 N, the Jacobian's
+        singular values 1.3e-12 and 1e5 (steps underflowed, 'newton')."""
+        if smallest >= 1e-2 * self.l_ref:
+            return False
+        values = np.linalg.svd(self.jacobian(y, s), compute_uv=False)
+        if values[-1] >= 1e-15 * values[0]:
+            return False
+        eigenvalues = self.eigenvalues(y, s)
+        return bool(eigenvalues[0] > DEFINITENESS_TOL * abs(eigenvalues[-1]))
 
     # -- reporting ---------------------------------------------------------------
     def angles(self, y, s):

@@ -384,3 +384,35 @@ def test_a_module_driven_flat_under_load_stops_at_its_linkage_limit():
     assert abs(s_final - 12.0 / 13.0) < 1e-7
     assert angle_distance(got.final.theta[0], np.zeros(2)) < 1e-3
     assert got.final.stable
+
+
+def test_a_landing_flow_stalled_at_a_flat_module_gives_up_within_its_budget():
+    """config/neck.yaml's modules as a seeded stream left them (bench_round_commands seed
+    0, stream 16: module 1 at its linkage limit, rho1 + rho2 = 0.24, m0 hanging down), head
+    load -2 -> +1 N: the neck folds at s = 0.627 with modules 1 and 2 almost flat.  The
+    landing's rigid flow reaches module 1's flat crossing, where it does not rest: which
+    branch the neck takes there (the reference's change-point rule) is not the tracker's
+    to say yet, so it gives up ('could not land after the fold').  Each rigid flow spent
+    the whole flow budget there (200000 evaluations, 16 s; the command over 20 s), now
+    an eighth of it."""
+    from tensegrity_ros.core import continuation
+    from tensegrity_ros.core.stack import StackPath
+    counted = [0]
+
+    class Counted(StackPath):
+        def rigid_descent(self, y, s):
+            counted[0] += 1
+            return super().rigid_descent(y, s)
+
+    start = neck_yaml((0.11, 0.09, 0.15), -2.0)
+    end = neck_yaml((0.11, 0.09, 0.15), 1.0)
+    state = np.array([4.797937458533063, 4.631076826745917, 3.2129635268714893,
+                      6.291842383950489, 3.318669734513109, 6.2343703730939986,
+                      -3.2558463920996448, -1.845205163904667])
+    held = track_stack(start, start, state).final
+    assert held.stable
+    got = continuation.track(Counted(start, end), held.state)
+    assert got.status == 'failed'
+    assert got.message.startswith('could not land after the fold at s=0.627'), got.message
+    budget = continuation.TrackerSettings().flow_evaluations
+    assert counted[0] <= 2 * (budget // 8 + 100), counted[0]

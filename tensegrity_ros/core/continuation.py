@@ -1240,6 +1240,10 @@ class _Tracker:
             if (rigid is not None and flow[0] is not rigid
                     and self.step_norm(projected - rest) > self.settings.same_state_tol):
                 flow[0] = rigid             # it rested as elastic chords: the same flow, rigid
+                # (with an eighth of the budget: stalled at a flat module, where it does not
+                # rest, a rigid flow used it all, 16 s on config/neck.yaml; 14000
+                # evaluations the most a landing took there)
+                budget[0] = min(budget[0], self.settings.flow_evaluations // 8)
                 continue
             y = projected
             polished = self.newton(y, s)

@@ -416,3 +416,33 @@ def test_a_landing_flow_stalled_at_a_flat_module_gives_up_within_its_budget():
     assert got.message.startswith('could not land after the fold at s=0.627'), got.message
     budget = continuation.TrackerSettings().flow_evaluations
     assert counted[0] <= 2 * (budget // 8 + 100), counted[0]
+
+
+def test_a_tracker_that_stops_at_events_lands_without_rigid_flows():
+    """config/neck.yaml's modules, no head load, rhos {0.15, 0.14, 0.07} as a seeded stream
+    left them (bench_round_commands seed 1, stream 9), m0 0.15 -> 0.07 m: the neck reaches
+    a branch point at s = 0.625 with module 0 7e-3 rad from flat.  Trackers run on the way
+    that stop at events (away from a branch point, back along a landing) still land at a
+    critical point reached to rounding, only to see whether the minimum goes on; with the
+    rigid restart of their landing flows the command took over 20 s.  They land as before
+    (elastic-chord flows only), and the command ends ok on a stable equilibrium."""
+    from tensegrity_ros.core import continuation
+    from tensegrity_ros.core.stack import StackPath
+    counted = [0]
+
+    class Counted(StackPath):
+        def rigid_descent(self, y, s):
+            counted[0] += 1
+            return super().rigid_descent(y, s)
+
+    start = neck_yaml((0.15, 0.14, 0.07))
+    end = neck_yaml((0.07, 0.14, 0.07))
+    state = np.array([0.5672531271029837, 3.720388097726451, 1.701456766552253,
+                      3.83229100925178, 2.1530863299995513, 3.399594131571089,
+                      -1.4836295251972489, 2.0115815304567644])
+    held = track_stack(start, start, state).final
+    assert held.stable
+    got = continuation.track(Counted(start, end), held.state)
+    assert got.status == 'ok', got.message
+    assert counted[0] < continuation.TrackerSettings().flow_evaluations // 8, counted[0]
+    assert_stable_for_the_reference(end, end, StackPath(end, end).angles(got.state, 0.0), 0.0)

@@ -164,49 +164,47 @@ def test_a_short_command_across_a_fold_reached_to_rounding_jumps_there(n):
     assert_stable_for_the_reference(near, past, jump.to_theta, jump.s)
 
 
-def _pulled_up_neck(rho1):
-    """config/neck.yaml's modules, m0 at 0.15 m, head pulled up 1 N."""
-    module = lambda rho, load=0.0: ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
-                                                kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
-    return Stack((module(0.15), module(rho1), module(0.09, 1.0)))
-
-
-def test_a_branch_point_next_to_a_linkage_limit_is_passed_as_the_reference_passes_it():
-    """The neck above (found by a seeded run of round-number commands), m1's actuator
-    0.08 -> 0.13 m: 5e-6 m short of m0's linkage limit (rho0 + rho1 = L1 + L2 = 0.24) the
-    tracker read a fold and reported a jump, landing ~0.016 rad away on a minimum that
-    exists only from 5e-5 m further on.  The reference goes on continuously (no jump, no
-    passage: it crosses at the limit) to the same end.  The fold test |psi . F_s| is
-    ill-conditioned next to a linkage limit; the tracker now looks for a minimum growing
-    out of every critical point before it lands, and passes this one as the pitchfork it
-    is.  (Session 8 took that jump for real: its test checked the landing was stable,
-    not that the mechanism jumps.)"""
+def test_a_buckling_next_to_a_linkage_limit_is_the_reference_paths():
+    """config/neck.yaml's modules (found by a seeded run of round-number commands), head
+    pulled up 1 N, m0 at 0.15 m, m1's actuator 0.08 -> 0.13 m: the neck's symmetric
+    state loses stability at m1 rho 0.0899946 (5e-6 m short of m0's linkage limit, rho0 +
+    rho1 = L1 + L2 = 0.24), where the critical mode is inexact (|psi . F_s| / |F_s| =
+    5e-6, not 0): it was taken for a fold, and the jump reported landed in a minimum that
+    exists only from 5e-5 m further on.  The reference's quasi-static path has no jump
+    there: the neck goes on continuously, and so does the tracker now (a passage), to
+    the reference's end state."""
+    neck = lambda rho1: Stack((
+        ModuleParams(rho=0.15, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02),
+        ModuleParams(rho=rho1, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02),
+        ModuleParams(rho=0.09, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02,
+                     f3y=1.0, f4y=1.0)))
     state = np.array([0.28968699, 2.85190566, 0.78366205, 2.3579306, 0.74311249, 2.39848016,
                       1.89924432, 0.78994397])
-    start, end = _pulled_up_neck(0.08), _pulled_up_neck(0.13)
+    start, end = neck(0.08), neck(0.13)
+    track = track_stack(start, end, state)
+    assert track.status == 'ok', track.message
+    assert track.jumps == ()
     held = track_stack(start, start, state).final
-    track = track_stack(start, end, held)
     ref = quasi_static_path(NeckSystem(start.modules, end.modules), np.ravel(held.theta))
     assert ref.jumps == []
-    assert track.status == 'ok' and track.jumps == (), track.message
-    passed = [p.stack.modules[1].rho for p in track.passages]
-    assert len(passed) == 1 and 0.24 - 0.15 - 1e-5 < passed[0] < 0.24 - 0.15
-    assert angle_distance(np.ravel(track.final.theta), ref.final) < 1e-6
+    assert angle_distance(np.ravel(track.final.theta), ref.final) < 1e-9
 
 
-def test_a_jump_that_lands_past_its_fold_says_where_its_landing_is_an_equilibrium():
-    """A jump whose landing minimum exists only past its critical point (the landing is
-    frozen up to 1e-3 in s on) says so: the simulator's Jump carries the landing's
-    parameters (``landing``) and the ``jumps`` message ``landing_rho`` and
-    ``landing_<m>_rho`` beside the critical ``rho`` (before, it gave the landing angles
-    beside the critical rho alone).  The raw jump is made here, with the figures of the
-    case that first showed it (since found to be a branch point passed continuously:
-    the test above)."""
+def test_a_jump_that_lands_past_its_event_says_where_its_landing_is_an_equilibrium():
+    """A jump whose landing minimum exists only past its event (the tracker reports it at
+    its own parameters, ``Event.landing_s``): the simulator's Jump carries those parameters
+    (``landing``) and the ``jumps`` message ``landing_rho`` and ``landing_<m>_rho``
+    (before, it gave the landing angles beside the event's rho alone).  The parameters are
+    those of the neck this was found on (config/neck.yaml's modules, head pulled up 1 N,
+    m1 0.0899946 -> 0.0900446 m), the jump given by hand: that one is no jump (above)."""
     from tensegrity_ros import ros_conversions
     from tensegrity_ros.core.mechanisms import make_jump
-    fold, landing = 0.0899946, 0.09005
-    raw = ('fold', 0.1998920, _pulled_up_neck(fold).modules, np.full((3, 2), 0.5),
-           np.full((3, 2), 0.6), False, _pulled_up_neck(landing).modules)
+    module = lambda rho, load=0.0: ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
+                                                kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
+    at = lambda rho1: (module(0.15), module(rho1), module(0.09, 1.0))     # noqa: E731
+    fold, landing = 0.0899946, 0.0900446
+    raw = ('fold', 0.19989, at(fold), np.zeros((3, 2)), np.full((3, 2), 0.1), False,
+           at(landing))
     event = make_jump(raw, module=1, cause='rho_cmd', count=1)
     assert event.landing[1].rho == landing and event.modules[1].rho == fold
     message = ros_conversions.jump_status(name='tensegrity: m1 jump', hardware_id='t',
@@ -271,3 +269,207 @@ def test_a_pitchfork_next_to_a_linkage_limit_is_passed_as_the_reference_passes_i
     final = np.ravel(track.final.theta)
     assert min(angle_distance(final, ref.final),
                angle_distance(mirrored(final), ref.final)) < 1e-6, (final, ref.final)
+
+
+def neck_yaml(rhos, head=0.0):
+    """config/neck.yaml's modules at actuator lengths ``rhos``, ``head`` N at each top node."""
+    module = lambda rho, load=0.0: ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
+                                                kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
+    return Stack((module(rhos[0]), module(rhos[1]), module(rhos[2], head)))
+
+
+@pytest.mark.parametrize('rhos, head, theta, index, rho, s_star', [
+    # bench_round_commands seed 0, stream 8: m1 0.08 -> 0.15 m buckles 1.1e-4 m short of
+    # m1's linkage limit (rho1 + rho2 = 0.24), m1 0.031 rad from flat
+    ((0.06, 0.08, 0.12), -2.0, [[0.948, 0.948], [-0.586, -0.586], [-0.383, -0.383]], 1,
+     0.15, 0.5698197),
+    # stream 16: m2 0.13 -> 0.15 m, m0 hanging down, buckles 1.2e-4 m short of m1's
+    # linkage limit, m1 0.031 rad from flat
+    ((0.09, 0.09, 0.13), -2.0, [[-1.571, -1.571], [0.411, 0.411], [0.250, 0.250]], 2,
+     0.15, 0.9940939),
+    # stream 18, head pulled up: m1 0.12 -> 0.15 m buckles 1.1e-5 m short of the end,
+    # where m0 and m1 are both at their linkage limits (was over 20 s: the landing's
+    # retries never ended, and the buckled branch was lost at the first amplitude tried)
+    ((0.09, 0.12, 0.09), 1.0, [[0.505, 0.505], [0.505, 0.505], [0.743, 0.743]], 1,
+     0.15, 0.9996386)])
+def test_buckling_next_to_a_flat_module_is_continuous(rhos, head, theta, index, rho, s_star):
+    """config/neck.yaml's modules, mirror-symmetric, driven to a
+    supercritical branch point next to a module folded almost flat: was 'could not land
+    after the fold'.  Near the flat module the critical mode is inexact (|psi . F_s| /
+    |F_s| 4.9e-6 and 1.1e-4, not 0), so it was taken for a fold; and the landing flow's
+    damped projection (elastic chords) rested ~5e-5 m off the constraints on the
+    symmetric state, whose projection Newton took to the symmetric saddle.  As the
+    reference's quasi-static path, the neck now buckles continuously (a passage, no
+    jump) and ends where it ends (or on its mirror image: which side a perfect pitchfork
+    buckles to is a convention)."""
+    start = neck_yaml(rhos, head)
+    end = start.with_module(index, rho=rho)
+    state = settle_stack(start, np.array(theta))
+    track = track_stack(start, end, state)
+    assert track.status == 'ok', track.message
+    assert track.jumps == () and len(track.passages) == 1
+    assert abs(track.passages[0].s - s_star) < 1e-6
+    ref = quasi_static_path(NeckSystem(start.modules, end.modules), np.ravel(state.theta))
+    assert ref.jumps == [] and len(ref.passages) == 1
+    final = np.ravel(track.final.theta)
+    assert min(angle_distance(final, ref.final),
+               angle_distance(mirrored(final), ref.final)) < 1e-9, (final, ref.final)
+
+
+def test_a_command_from_two_flat_modules_leaves_them():
+    """config/neck.yaml's modules, no head load, as a seeded stream left them (bench_round_
+    commands seed 0, stream 19: a command stopped at module 0's linkage limit), module 0
+    flat (5.7e-11 rad) and module 1 at its own limit (rho0 + rho1 = rho1 + rho2 = 0.24);
+    joint_commands {0.12, 0.09, 0.12} takes both away from their limits.  The minimum
+    just past the flat state was found at the start's stiffness scale, inflated by the
+    chord force (lambda_max 4.4e10 N/m; 7.3e3 N/m there), so Newton stopped 0.14 N from
+    equilibrium, 9e-5 rad off it, and every step from there was 'far': was 'step size
+    underflow at s=1e-06 (far)'.  Now ok, each landing and the end stable for the
+    reference."""
+    start = neck_yaml((0.11375000000000107, 0.12624999999999892, 0.1137499999999995))
+    state = np.array([5.710242027633342e-11, 3.141592653532572, -0.007977820282589513,
+                      3.1418005516052805, 0.3023670678687126, 2.822824334879997,
+                      226481513.07760066, -0.9786008860000873])
+    held = track_stack(start, start, state).final
+    assert held.stable and np.max(np.abs(held.theta[0])) < 1e-9
+    end = neck_yaml((0.12, 0.09, 0.12))
+    track = track_stack(start, end, held)
+    assert track.status == 'ok', track.message
+    for jump in track.jumps:
+        s = (jump.landing_stack.modules[0].rho - start.modules[0].rho) / (0.12 - start.modules[0].rho)
+        assert_stable_for_the_reference(start, end, jump.to_theta, s)
+    assert_stable_for_the_reference(end, end, track.final.theta, 0.0)
+
+
+def test_a_settle_next_to_a_flat_module_rests_where_the_reference_flow_does():
+    """config/neck.yaml's modules, no head load, module 0 4e-4 rad from flat and module 1
+    at its own linkage limit (the state a stream left: bench_round_commands seed 0, stream
+    19, before the scale fix above); the next command settled from there.  The landing
+    flow's damped projection (elastic chords) rested 1e-4 m off the constraints, whose
+    projection Newton took to a saddle: was 'no stable equilibrium reached from the given
+    state'; going on rigid from that rest point then rested elsewhere (module 0 0.014 rad
+    from where the rigid flow goes).  The flow now starts over rigid: it rests where the
+    reference's flow does."""
+    from reference_paths import settle_reference
+    stack = neck_yaml((0.11375000625, 0.12624996375, 0.11375000625))
+    theta = np.array([[0.0004, 0.0003], [-0.0079, -0.0002], [0.3106, 0.3106]])
+    got = settle_stack(stack, theta)
+    assert got.stable
+    reference = settle_reference(NeckSystem(stack.modules), theta.ravel())
+    assert not reference.ambiguous
+    assert angle_distance(np.ravel(got.theta), reference.state) < 1e-9
+    assert_stable_for_the_reference(stack, stack, got.theta, 0.0)
+
+
+def test_a_landing_by_a_module_at_its_linkage_limit_is_the_reference_paths():
+    """config/neck.yaml's modules as a seeded stream left them (bench_round_commands seed
+    0, stream 10: commands stopped at module 0's linkage limit, rho0 + rho1 = 0.24, and
+    at a fold), head load -0.047 -> -10 N: the neck folds at s = 0.0823 with module 0 on
+    one branch of its crossing at flat (-0.038, -0.0011 rad).  The elastic-chord flow
+    rested 5.6e-5 m off the constraints; the rigid one, integrated as loosely as the
+    elastic one, rested at the crossing or went through it onto the mirror branch (the
+    way turns on ~1e-7 of it).  Was 'could not land after the fold'.  Now the jump lands
+    where the reference's quasi-static path does, and so does the command."""
+    rhos, load = (0.12714285714285406, 0.11285714285714055, 0.11), -0.04680362720831721
+    at = lambda s: neck_yaml(rhos, load + s * (-10.0 - load))       # noqa: E731
+    start = at(0.0)
+    state = np.array([-0.014637887761961775, 3.1420287001042175, 0.36509384119798977,
+                      2.746184073161542, 0.38380108303212673, 2.7273323792052877,
+                      -0.9784359822956004, 1.0726442579687958])
+    held = track_stack(start, start, state).final
+    assert held.stable
+    mine = track_stack(start, at(1.0), held)
+    assert mine.status == 'ok', mine.message
+    ref = quasi_static_path(NeckSystem(start.modules, at(1.0).modules), np.ravel(held.theta))
+    assert [j.kind for j in mine.jumps] == [j.kind for j in ref.jumps] == ['fold']
+    assert angle_distance(np.ravel(mine.jumps[0].to_theta), ref.jumps[0].landing) < 1e-3
+    assert angle_distance(np.ravel(mine.final.theta), ref.final) < 1e-9
+
+
+def test_a_module_driven_flat_under_load_stops_at_its_linkage_limit():
+    """config/neck.yaml's modules, head pushed down 10 N, joint_commands {0.10, 0.15, 0.06}
+    from {0.06, 0.06, 0.14} (bench_round_commands seed 0, stream 11): module 0 is driven
+    flat (rho0 + rho1 = 0.24 at s = 12/13) with the load along the fold, its chord force
+    growing ~1/angle.  The steps underflowed 1e-8 in s short of it, 1e-4 rad from flat
+    (chord force 8.4e4 N), where the equilibrium equations are singular to rounding (the
+    Jacobian's singular values 1.3e-12 .. 1e5) at a minimum (lambda_min 183 N/m): was
+    'step size underflow (newton)'.  It is the linkage limit (the model's own: no minimum
+    goes on continuously, the rigid chord does not say where the neck goes), said so."""
+    start = neck_yaml((0.06, 0.06, 0.14), -10.0)
+    # the simulator's state as the stream left it: its rod angles wound up to ~4e4 rad
+    # (7e-12 rad apart in floating point), which is what stopped the steps that early
+    state = np.array([41935.02593766776, 43431.47123832769, -590.033733331424,
+                      -581.7803264575689, -20445.955874025265, 21234.4956300763,
+                      3.531982553097078, -0.14649542490653558])
+    held = track_stack(start, start, state).final
+    assert held.stable
+    end = neck_yaml((0.10, 0.15, 0.06), -10.0)
+    got = track_stack(start, end, held)
+    assert got.status == 'failed'
+    assert 'linkage limit' in got.message and 'module 0 folded flat' in got.message, got.message
+    s_final = (got.end.modules[0].rho - 0.06) / 0.04
+    assert abs(s_final - 12.0 / 13.0) < 1e-7
+    assert angle_distance(got.final.theta[0], np.zeros(2)) < 1e-3
+    assert got.final.stable
+
+
+def test_a_landing_flow_stalled_at_a_flat_module_gives_up_within_its_budget():
+    """config/neck.yaml's modules as a seeded stream left them (bench_round_commands seed
+    0, stream 16: module 1 at its linkage limit, rho1 + rho2 = 0.24, m0 hanging down), head
+    load -2 -> +1 N: the neck folds at s = 0.627 with modules 1 and 2 almost flat.  The
+    landing's rigid flow reaches module 1's flat crossing, where it does not rest: which
+    branch the neck takes there (the reference's change-point rule) is not the tracker's
+    to say yet, so it gives up ('could not land after the fold').  Each rigid flow spent
+    the whole flow budget there (200000 evaluations, 16 s; the command over 20 s), now
+    an eighth of it."""
+    from tensegrity_ros.core import continuation
+    from tensegrity_ros.core.stack import StackPath
+    counted = [0]
+
+    class Counted(StackPath):
+        def rigid_descent(self, y, s):
+            counted[0] += 1
+            return super().rigid_descent(y, s)
+
+    start = neck_yaml((0.11, 0.09, 0.15), -2.0)
+    end = neck_yaml((0.11, 0.09, 0.15), 1.0)
+    state = np.array([4.797937458533063, 4.631076826745917, 3.2129635268714893,
+                      6.291842383950489, 3.318669734513109, 6.2343703730939986,
+                      -3.2558463920996448, -1.845205163904667])
+    held = track_stack(start, start, state).final
+    assert held.stable
+    got = continuation.track(Counted(start, end), held.state)
+    assert got.status == 'failed'
+    assert got.message.startswith('could not land after the fold at s=0.627'), got.message
+    budget = continuation.TrackerSettings().flow_evaluations
+    assert counted[0] <= 2 * (budget // 8 + 100), counted[0]
+
+
+def test_a_tracker_that_stops_at_events_lands_without_rigid_flows():
+    """config/neck.yaml's modules, no head load, rhos {0.15, 0.14, 0.07} as a seeded stream
+    left them (bench_round_commands seed 1, stream 9), m0 0.15 -> 0.07 m: the neck reaches
+    a branch point at s = 0.625 with module 0 7e-3 rad from flat.  Trackers run on the way
+    that stop at events (away from a branch point, back along a landing) still land at a
+    critical point reached to rounding, only to see whether the minimum goes on; with the
+    rigid restart of their landing flows the command took over 20 s.  They land as before
+    (elastic-chord flows only), and the command ends ok on a stable equilibrium."""
+    from tensegrity_ros.core import continuation
+    from tensegrity_ros.core.stack import StackPath
+    counted = [0]
+
+    class Counted(StackPath):
+        def rigid_descent(self, y, s):
+            counted[0] += 1
+            return super().rigid_descent(y, s)
+
+    start = neck_yaml((0.15, 0.14, 0.07))
+    end = neck_yaml((0.07, 0.14, 0.07))
+    state = np.array([0.5672531271029837, 3.720388097726451, 1.701456766552253,
+                      3.83229100925178, 2.1530863299995513, 3.399594131571089,
+                      -1.4836295251972489, 2.0115815304567644])
+    held = track_stack(start, start, state).final
+    assert held.stable
+    got = continuation.track(Counted(start, end), held.state)
+    assert got.status == 'ok', got.message
+    assert counted[0] < continuation.TrackerSettings().flow_evaluations // 8, counted[0]
+    assert_stable_for_the_reference(end, end, StackPath(end, end).angles(got.state, 0.0), 0.0)

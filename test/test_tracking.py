@@ -207,6 +207,54 @@ def test_tracker_is_generic_over_the_problem_dimension():
     assert result.state[0] == pytest.approx(brentq(lambda y: y ** 3 - y + 1, -2, -1), abs=1e-10)
 
 
+class Ghost:
+    """U = y0^3 / 3 - (c - s) y0 + y1^2: the minimum y0 = sqrt(c - s) ends at a fold at
+    s = c, past which there is none (the flow runs off to y0 -> -inf at a bounded speed)."""
+
+    size = 2
+
+    def __init__(self, c):
+        self.c = c
+
+    def residual(self, y, s):
+        return np.array([y[0] ** 2 - (self.c - s), 2.0 * y[1]])
+
+    def jacobian(self, y, s):
+        return np.diag([2.0 * y[0], 2.0])
+
+    def residual_s(self, y, s):
+        return np.array([1.0, 0.0])
+
+    def energy(self, y, s):
+        return y[0] ** 3 / 3 - (self.c - s) * y[0] + y[1] ** 2
+
+    def energy_s(self, y, s):
+        return y[0]
+
+    def stability(self, y, s):
+        return np.linalg.eigh(self.jacobian(y, s))
+
+    def descent(self, y, s):
+        return -np.tanh(self.residual(y, s))
+
+    def project(self, y, s):
+        return y
+
+
+@pytest.mark.parametrize('c', [0.5, 0.999638580089214])
+def test_a_landing_that_finds_no_minimum_is_given_up(c):
+    """A fold with no minimum past it: the landing is retried frozen further past the
+    fold, up to 1e-3 in s, then the command fails there.  At s* = 0.999638580089214
+    (a fold of config/neck.yaml in bench_round_commands seed 0, stream 18, m1 -> 0.15 m)
+    (s* + 1e-3) - s* rounds to 0.00099999999999989 < 1e-3, and the retries never ended
+    (that command ran past 20 s; here the time budget stops it)."""
+    from tensegrity_ros.core import TrackerSettings
+    result = track(Ghost(c), np.array([math.sqrt(c), 0.0]), TrackerSettings(time_budget=5.0))
+    assert result.status == 'failed'
+    assert result.message == f'could not land after the fold at s={c!r}', result.message
+    assert result.s == pytest.approx(c, abs=1e-9)
+
+
 def test_tracker_refuses_an_unstable_start():
     with pytest.raises(TrackingError):
         track(Cusp(2), np.array([0.0, 0.0]))          # y0 = 0 is a maximum at s = 0.5 ... and not an equilibrium at s = 0

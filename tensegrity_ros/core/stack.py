@@ -40,7 +40,7 @@ from . import continuation as _continuation
 from .continuation import TrackerSettings
 from .module import ModuleParams, PARAMETER_NAMES, InvalidParameterError
 from .stack_fast_step import keep_final_point, whole_command_step
-from .tolerances import verified_minimum
+from .tolerances import DEFINITENESS_TOL, verified_minimum
 
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
 _PARAMETERS_OF = operator.attrgetter(*PARAMETER_NAMES)     # a module's parameters, in order
@@ -766,6 +766,34 @@ class StackPath:
         correction = np.linalg.solve(gram, jc @ free - rate * p.constraints(self))
         return np.concatenate([-free + mobility_jc @ correction, np.zeros_like(p.mu)])
 
+    def rigid_descent(self, y, s):
+        """:meth:`descent` with the force projected exactly (through a null basis of the
+        constraints, not the damped Gram inverse), so that it rests only where the
+        rigid-chord model is in equilibrium; only the pull onto the constraints is damped.
+
+        Near a module folded almost flat (the Gram matrix's smallest eigenvalue below
+        ``_DAMPING_ONSET``) :meth:`descent` damps the projection too: it glides through
+        the kinematic singularity as a neck of slightly elastic chords would, but rests
+        there off the constraints by ~damping * chord force / rate (5e-5 m on
+        config/neck.yaml), where no Newton from its projection may find the landing.
+        The tracker's landing flow starts over with this one where it rested so."""
+        p = self.point(y, s)
+        metric = p.metric(self)
+        gradient = self._unconstrained_gradient(p)
+        if not self.topology.n_chords:
+            return -np.linalg.solve(metric, gradient)
+        jc = p.constraint_jacobian(self)
+        z = _null_basis(jc)
+        tangential = z @ np.linalg.solve(z.T @ metric @ z, z.T @ gradient)
+        mobility_jc = np.linalg.solve(metric, jc.T)
+        gram = jc @ mobility_jc
+        smallest = np.linalg.eigvalsh(gram)[0]
+        if smallest < _DAMPING_ONSET:
+            gram = gram + _DAMPING * (1.0 - smallest / _DAMPING_ONSET) ** 2 * np.eye(len(jc))
+        rate = float(np.max(p.values.k)) * 2.0
+        pull = mobility_jc @ np.linalg.solve(gram, rate * p.constraints(self))
+        return np.concatenate([-tangential - pull, np.zeros_like(p.mu)])
+
     def project(self, y, s):
         """Nearest admissible rod angles (Gauss-Newton in the node metric) and
         least-squares multipliers."""
@@ -820,16 +848,35 @@ class StackPath:
         module).  Two branches of configurations cross there, so the equilibrium
         equations are singular although the state may be a strict minimum, and the
         chord's force grows without bound where the load pushes along the fold (see
-        ``_Tracker.through_linkage_limit``)."""
+        ``_Tracker.through_linkage_limit``).  So a module nearly flat where the equations
+        are singular to rounding at a minimum is at its limit too (:meth:`_unresolved`)."""
         if not self.topology.n_chords:
             return ''
         jc = self.point(y, s).constraint_jacobian(self)
-        if np.linalg.svd(jc, compute_uv=False)[-1] >= LINKAGE_LIMIT_TOL * self.l_ref:
+        smallest = np.linalg.svd(jc, compute_uv=False)[-1]
+        if smallest >= LINKAGE_LIMIT_TOL * self.l_ref and not self._unresolved(y, s, smallest):
             return ''
         i = int(np.argmin(np.linalg.norm(jc, axis=1)))
         force = abs(float(y[self.topology.n_rods + i])) * self.f_ref
         return (f'module {i} folded flat onto its top chord (its rods and chord in one '
                 f'line; chord force {force:.3g} N)')
+
+    def _unresolved(self, y, s, smallest):
+        """Whether a chord's gradient ``smallest`` is small (< 1e-2 l_ref) and the KKT
+        Jacobian singular to rounding (smallest singular value < 1e-15 of its largest)
+        where the reduced Hessian passes the margin test: a KKT matrix is singular only
+        where its reduced Hessian or its constraint Jacobian is, so the chords are.  A
+        module driven flat under load, its chord force growing ~1/angle, is resolved
+        only so far: config/neck.yaml under a -10 N head load stopped 1e-4 rad from flat,
+        1.3e-9 m short of rho0 + rho1 = 0.24, chord force 8.4e4 N, the Jacobian's
+        singular values 1.3e-12 and 1e5 (steps underflowed, 'newton')."""
+        if smallest >= 1e-2 * self.l_ref:
+            return False
+        values = np.linalg.svd(self.jacobian(y, s), compute_uv=False)
+        if values[-1] >= 1e-15 * values[0]:
+            return False
+        eigenvalues = self.eigenvalues(y, s)
+        return bool(eigenvalues[0] > DEFINITENESS_TOL * abs(eigenvalues[-1]))
 
     # -- reporting ---------------------------------------------------------------
     def angles(self, y, s):

@@ -473,3 +473,31 @@ def test_a_tracker_that_stops_at_events_lands_without_rigid_flows():
     assert got.status == 'ok', got.message
     assert counted[0] < continuation.TrackerSettings().flow_evaluations // 8, counted[0]
     assert_stable_for_the_reference(end, end, StackPath(end, end).angles(got.state, 0.0), 0.0)
+
+
+def test_a_buckled_neck_back_onto_its_symmetric_branch_past_a_flat_module_does_not_jump():
+    """config/neck.yaml's modules (head 0.5 N down), from a buckled state at rhos (0.15,
+    0.14, 0.14) m, joint_commands to (0.15, 0.05, 0.07) m (bench_round_commands seed 0,
+    stream 4): module 0 folds flat at s = 5/9, and 2.3e-4 in s later the buckled neck
+    runs back onto its symmetric branch (lambda_min falls linearly to 0: a supercritical
+    pitchfork run backwards).  That branch moves like sqrt(s - s_flat) there, so the
+    landing taken 1e-3 past lay 0.05 away (beyond a step's reach, taken for a jump), and
+    Newton from the critical state does not converge (its Jacobian is singular): a fold
+    jump of 0.017 rad was reported.  The reference has no jump; neither has the tracker
+    now, and both end on the same state."""
+    module = lambda rho, load=0.0: ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
+                                                kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
+    start = Stack((module(0.15), module(0.14), module(0.14, -0.5)))
+    end = Stack((module(0.15), module(0.05), module(0.07, -0.5)))
+    state = np.array([0.5615421196209428, 3.7262394299446866, 0.6430744154901497,
+                      3.802209448696547, 0.06150503374070685, 3.3013744374402445,
+                      -3.000369435471334, -1.5751514047327158])
+    held = track_stack(start, start, state).final
+    assert held.stable
+    track = track_stack(start, end, held)
+    ref = quasi_static_path(NeckSystem(start.modules, end.modules), np.ravel(held.theta))
+    assert ref.jumps == []
+    assert track.status == 'ok' and track.jumps == (), (track.message, track.jumps)
+    final = np.ravel(track.final.theta)
+    assert min(angle_distance(final, ref.final),
+               angle_distance(mirrored(final), ref.final)) < 1e-6, (final, ref.final)

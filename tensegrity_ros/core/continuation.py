@@ -901,11 +901,11 @@ class _Tracker:
         direction = np.append(psi, 0.0)
         amplitude = self.settings.step_off / max(self.step_norm(psi), 1e-300)
         for _ in range(5):      # lost there: shorter (config/neck.yaml's buckled branch
-            if self.arc_point(y_star, s_star, direction, amplitude) is not None:
+            found = self.arc_point(y_star, s_star, direction, amplitude)
+            if found is not None:
                 break           # 3.6e-4 in s short of two linkage limits: from 3e-4 rad)
             amplitude *= 0.25
         for _ in range(6):
-            found = self.arc_point(y_star, s_star, direction, amplitude)
             if found is None or not found[1] > s_star:
                 return None                     # not past s*: subcritical (or lost)
             y, s = found
@@ -916,6 +916,7 @@ class _Tracker:
                     abs(eigenvalues[-1]), self.scale * 1e-3):
                 break
             amplitude *= 2.0
+            found = self.arc_point(y_star, s_star, direction, amplitude)
         else:
             return None
         if s <= s_end:

@@ -754,17 +754,22 @@ class StackPath:
         free = np.linalg.solve(p.metric(self), self._unconstrained_gradient(p))
         if not self.topology.n_chords:
             return -free
+        jc, mobility_jc, gram, rate = self._damped_constraints(p)
+        correction = np.linalg.solve(gram, jc @ free - rate * p.constraints(self))
+        return np.concatenate([-free + mobility_jc @ correction, np.zeros_like(p.mu)])
+
+    def _damped_constraints(self, p):
+        """(constraint Jacobian, metric^-1 jc^T, their Gram matrix damped, pull rate)
+        for the overdamped flows.  Damped (Levenberg): smooth through kinematic
+        singularities of the stack, where rods fold flat onto a chord and the constraint
+        rows degenerate."""
         jc = p.constraint_jacobian(self)
         mobility_jc = np.linalg.solve(p.metric(self), jc.T)
         gram = jc @ mobility_jc
-        # Damped (Levenberg) projection: smooth through kinematic singularities of the
-        # stack, where rods fold flat onto a chord and the constraint rows degenerate.
         smallest = np.linalg.eigvalsh(gram)[0]
         if smallest < _DAMPING_ONSET:
             gram = gram + _DAMPING * (1.0 - smallest / _DAMPING_ONSET) ** 2 * np.eye(len(jc))
-        rate = float(np.max(p.values.k)) * 2.0
-        correction = np.linalg.solve(gram, jc @ free - rate * p.constraints(self))
-        return np.concatenate([-free + mobility_jc @ correction, np.zeros_like(p.mu)])
+        return jc, mobility_jc, gram, float(np.max(p.values.k)) * 2.0
 
     def rigid_descent(self, y, s):
         """:meth:`descent` with the force projected exactly (through a null basis of the
@@ -782,15 +787,9 @@ class StackPath:
         gradient = self._unconstrained_gradient(p)
         if not self.topology.n_chords:
             return -np.linalg.solve(metric, gradient)
-        jc = p.constraint_jacobian(self)
+        jc, mobility_jc, gram, rate = self._damped_constraints(p)
         z = _null_basis(jc)
         tangential = z @ np.linalg.solve(z.T @ metric @ z, z.T @ gradient)
-        mobility_jc = np.linalg.solve(metric, jc.T)
-        gram = jc @ mobility_jc
-        smallest = np.linalg.eigvalsh(gram)[0]
-        if smallest < _DAMPING_ONSET:
-            gram = gram + _DAMPING * (1.0 - smallest / _DAMPING_ONSET) ** 2 * np.eye(len(jc))
-        rate = float(np.max(p.values.k)) * 2.0
         pull = mobility_jc @ np.linalg.solve(gram, rate * p.constraints(self))
         return np.concatenate([-tangential - pull, np.zeros_like(p.mu)])
 

@@ -42,7 +42,7 @@ import numpy as np
 from scipy.integrate import LSODA
 
 from .bounded_work import Budget, checkpoint
-from .tolerances import DEFINITENESS_TOL
+from .tolerances import BRANCH_POINT_CERTIFIED, DEFINITENESS_TOL, verified_minimum
 
 FOLD = 'fold'
 BRANCH_POINT = 'branch_point'
@@ -59,6 +59,14 @@ PITCHFORK_CONTRACTION = 0.75
 #: A critical point is located to this in s (DESIGN.md): a command that ends closer than
 #: this past one ends at the critical point itself (see ``_Tracker.at_the_critical_point``).
 LOCATION_TOL = 1e-9
+#: A command ending closer than this in s past a supercritical branch point ends at the
+#: branch point itself: a buckled state that close is not told from it (the normal form's
+#: linear law of lambda_min puts s* within ~1e-11 from a state 3e-5 in s away on the
+#: N = 3 neck: see ``_Tracker.toward_branch_point``).  The unloaded paper module
+#: commanded to rho = 1.0 from below met its branch point 4.4e-13 in s before the end,
+#: rho's rounding, and ended 'past' it 8e-9 rad out, a state the next command back up
+#: could not leave (the time budget ran out).
+UNRESOLVED = 1e-11
 
 
 class PathProblem(Protocol):
@@ -376,7 +384,7 @@ class _Tracker:
         eigenvalues = self.eigenvalues(y, s)
         if self.definite(eigenvalues):
             self.certificate = ''
-        elif not (self.certificate and self.soft_minimum(eigenvalues)):
+        elif not self.certified_start(eigenvalues):
             raise TrackingError('the start state is not a stable equilibrium')
         events = []
         self.keep(y, s, eigenvalues, events)
@@ -414,6 +422,19 @@ class _Tracker:
                 self.keep(y, s, eigenvalues, events)
                 continue
             found = None
+            if reason == 'indefinite' and self.certificate == BRANCH_POINT_CERTIFIED:
+                # at the branch point itself, the command leading into its buckling side
+                moved = self.leave_branch_point(y, s, s_end)
+                if moved is None:
+                    return self.result(y, s, eigenvalues, events, 'failed',
+                                       f'no stable buckled state found leaving the branch '
+                                       f'point at s={s!r}')
+                y, s, _ = moved
+                eigenvalues = self.eigenvalues(y, s)
+                self.keep(y, s, eigenvalues, events)
+                self.rescale(eigenvalues)
+                ds, rate = 1.0, None
+                continue
             if reason == 'indefinite':
                 found = self.crossing_on_path(y, s, tangent, s + ds)
                 if ((found is None or found[1] > s_end)
@@ -486,6 +507,15 @@ class _Tracker:
             return None
         eigenvalues = self.eigenvalues(y, s_end)
         return ('regular', y, s_end, eigenvalues) if self.definite(eigenvalues) else None
+
+    def certified_start(self, eigenvalues):
+        """A start below the margin test that ``self.certificate`` verifies: a soft
+        minimum (lambda_min positive) next to a passed pitchfork, or a supercritical
+        branch point itself (:meth:`at_branch_point`)."""
+        if self.certificate == BRANCH_POINT_CERTIFIED:
+            return bool(self.definite(eigenvalues[1:])
+                        and verified_minimum(eigenvalues, BRANCH_POINT_CERTIFIED))
+        return bool(self.certificate and self.soft_minimum(eigenvalues))
 
     def soft_minimum(self, eigenvalues):
         """lambda_min positive and every other eigenvalue passes the margin test."""
@@ -580,9 +610,13 @@ class _Tracker:
         along = direction @ reference if reference is not None else direction[-1]
         return -direction if along < 0.0 else direction
 
-    def arc_point(self, y0, s0, direction, h):
+    def arc_point(self, y0, s0, direction, h, any_s=False):
         """Pseudo-arclength corrector: the branch point on the hyperplane through
-        (y0, s0) + h direction normal to direction; ``None`` unless it converges near it."""
+        (y0, s0) + h direction normal to direction; ``None`` unless it converges near it.
+
+        ``any_s``: near it in the state only, at whatever s (a bifurcated branch off a
+        branch point, ``direction`` the critical mode: its s - s* ~ h^2 / c is in the
+        path's own units, 1e6 commands away for a command 1e-9 in rho long)."""
         problem, n = self.problem, self.problem.size
         z0 = np.append(y0, s0)
         predicted = z0 + h * direction
@@ -608,8 +642,9 @@ class _Tracker:
         y, s = z[:n], float(z[n])
         # the extended system is regular at folds, so it converges to rounding level;
         # where it does not (a singular linkage limit), the step is refused
+        miss = z - predicted
         if (not self.residual_ok(y, s, 1e-3)
-                or _inf_norm(z - predicted) > 0.5 * h + self.settings.same_state_tol):
+                or _inf_norm(miss[:n] if any_s else miss) > 0.5 * h + self.settings.same_state_tol):
             return None
         if not self.energy_consistent(y0, s0, y, s):
             return None
@@ -901,7 +936,7 @@ class _Tracker:
         direction = np.append(psi, 0.0)
         amplitude = self.settings.step_off / max(self.step_norm(psi), 1e-300)
         for _ in range(5):      # lost there: shorter (config/neck.yaml's buckled branch
-            found = self.arc_point(y_star, s_star, direction, amplitude)
+            found = self.arc_point(y_star, s_star, direction, amplitude, any_s=True)
             if found is not None:
                 break           # 3.6e-4 in s short of two linkage limits: from 3e-4 rad)
             amplitude *= 0.25
@@ -916,14 +951,22 @@ class _Tracker:
                     abs(eigenvalues[-1]), self.scale * 1e-3):
                 break
             amplitude *= 2.0
-            found = self.arc_point(y_star, s_star, direction, amplitude)
+            found = self.arc_point(y_star, s_star, direction, amplitude, any_s=True)
         else:
             return None
         if s <= s_end:
             return y, s, True
+        # a command ending at the branch point itself: first where no buckled state can
+        # be told from it, then where none is found within its location tolerance
+        at = self.at_branch_point(s_star, y_star, s_end, UNRESOLVED)
+        if at is not None:
+            return at, s_end, False
         near = self.buckled_at(s_star, y_star, y, s, s_end)
         if near is not None:
             return near, s_end, True
+        at = self.at_branch_point(s_star, y_star, s_end, LOCATION_TOL)
+        if at is not None:
+            return at, s_end, False
         back = _Tracker(_Segment(self.problem, s, s_end), self.settings).run(y)
         if back.status != 'ok' or back.events:
             raise TrackingError(f'the buckled state after the branch point at s={float(s_star)!r} '
@@ -931,6 +974,47 @@ class _Tracker:
                                 + self.at_the_critical_point(s_star, s_end))
         self.certificate = back.certificate
         return back.state, s_end, not back.passages
+
+    def leave_branch_point(self, y, s, s_end):
+        """From a start at a supercritical branch point (certified so), a command into its
+        buckling side: the buckled minimum, (state, s, None) with the passage listed, or
+        ``None`` (then the command fails: the branch point was found supercritical, so a
+        jump from it would be false)."""
+        self.certificate = ''           # the buckled state's own, if any (buckled_at)
+        try:
+            found = self.buckled_minimum(s, y, s_end)
+        except TrackingError:
+            return None
+        if found is None:
+            return None
+        y_end, s_at, passed = found
+        if passed:
+            self.passages.append((s, y))
+        return y_end, s_at, None
+
+    def at_branch_point(self, s_star, y_star, s_end, within):
+        """The end state of a command that ends at a supercritical branch point itself
+        (``within`` in s past s*; e.g. the unloaded paper module commanded to rho = L):
+        Newton at s_end from y*, or ``None``.
+
+        lambda_min is zero there to the tracker's resolution, so no margin test can
+        verify it, but the buckled branch just found past s* is stable: the normal
+        form's quartic term is positive and the branch point is a (degenerate) minimum.
+        The state is taken where every other eigenvalue passes the margin test and
+        lambda_min is within it of zero (:func:`~.tolerances.verified_minimum` with
+        ``BRANCH_POINT_CERTIFIED``); the command then ends with ``Track.certificate``
+        saying so, the branch point not passed."""
+        if not 0.0 <= s_end - s_star <= within:
+            return None
+        found = self.newton(y_star, s_end)
+        if found is None or self.separation(found, y_star) > self.settings.passage_radius:
+            return None
+        eigenvalues = self.eigenvalues(found, s_end)
+        if not (self.definite(eigenvalues[1:]) and verified_minimum(eigenvalues,
+                                                                    BRANCH_POINT_CERTIFIED)):
+            return None
+        self.certificate = BRANCH_POINT_CERTIFIED
+        return found
 
     def buckled_at(self, s_star, y_star, y, s, s_end):
         """The buckled minimum at s_end in (s*, s), from the one found at s: Newton from

@@ -31,6 +31,14 @@ the tracker then says so (:attr:`.continuation.Track.certificate`), and
 rho = L: 2e-10 of lambda_max) and the simulator accept it.  A certified state is also a
 start the tracker takes, and a command from it back towards the branch point is solved
 by the normal form (:meth:`.continuation._Tracker.toward_branch_point`).
+
+At a supercritical branch point itself (a command ending within the tracker's location
+tolerance, 1e-9 in s, of it: the unloaded paper module commanded to rho = L exactly)
+lambda_min is zero to within the margin band, of either sign, and no sign test can
+decide.  There the state is a minimum by the normal form's quartic term, which the
+tracker checks by finding the buckled branch past it stable; such a state carries
+:data:`BRANCH_POINT_CERTIFIED` and is a minimum where |lambda_min| is within
+DEFINITENESS_TOL of |lambda_max| (and it is a start the tracker takes).
 """
 
 #: The tracker's (and a tracked neck state's) definiteness: lambda_min > this * |lambda_max|.
@@ -38,6 +46,11 @@ DEFINITENESS_TOL = 1e-9
 #: The certificate of a tracked module state that passed the tracker's margin test
 #: (DEFINITENESS_TOL) but classifies as degenerate (DEGENERACY_TOL): see above.
 MARGIN_CERTIFIED = 'tracker_margin_test'
+#: The certificate of a state at a supercritical branch point itself: a command ending
+#: there within the tracker's location tolerance (the unloaded paper module commanded to
+#: rho = L).  lambda_min is zero to the margin test there, either sign; the state is a
+#: minimum by the normal form's quartic term (its buckled branch is stable): see above.
+BRANCH_POINT_CERTIFIED = 'supercritical_branch_point'
 #: An eigenvalue with |lambda| <= DEGENERACY_TOL * max|lambda| counts as zero in the
 #: classification of solver roots.
 DEGENERACY_TOL = 1e-8
@@ -47,6 +60,7 @@ def verified_minimum(eigenvalues, certificate=''):
     """Whether ``eigenvalues`` (ascending) make a verified minimum: lambda_min above
     DEFINITENESS_TOL of |lambda_max|, or positive where the tracker certified the state
     by a branch point's normal form (a non-empty ``certificate``, see above)."""
-    low = eigenvalues[0]
-    return bool(low > DEFINITENESS_TOL * max(abs(eigenvalues[-1]), 1e-300)
-                or (certificate and low > 0.0))
+    low, band = eigenvalues[0], DEFINITENESS_TOL * max(abs(eigenvalues[-1]), 1e-300)
+    if certificate == BRANCH_POINT_CERTIFIED:
+        return bool(low > -band)
+    return bool(low > band or (certificate and low > 0.0))

@@ -446,6 +446,27 @@ def test_a_landing_flow_through_a_flat_crossing_takes_the_reference_paths_half_b
                angle_distance(mirrored(final), ref.final)) < 1e-6, (final, ref.final)
 
 
+def test_a_flat_crossings_half_branches_are_the_reference_ones():
+    """The crossing the tracker finds next to a state with module 1 8e-4 rad from flat
+    (rho1 + rho2 = L1 + L2, as in stream 16 above), and its four half-branch states
+    1e-4 rad out, are the reference's (``change_point_branches``, in the local angles
+    of its own model), to 1e-9 rad."""
+    from tensegrity_ros.core import flat_crossing
+    from tensegrity_ros.core.stack import StackPath
+    stack = neck_yaml((0.11, 0.09, 0.15), -2.0)
+    path = StackPath(stack, stack)
+    y = path.state_from_angles([[-0.578, -0.593], [6e-4, -8e-5], [-0.007, -0.0097]], 0.0)
+    module, crossing, states = flat_crossing.crossing_at(path, y, 0.0)
+    theirs, their_states = NeckSystem(stack.modules).change_point_branches(
+        np.ravel(path.angles(y, 0.0)), 0.0)
+    assert module == 1
+    assert angle_distance(np.ravel(path.angles(crossing, 0.0)), theirs) < 1e-9
+    mine = [np.ravel(path.angles(x, 0.0)) for x in states]
+    assert len(mine) == len(their_states) == 4
+    for state in their_states:
+        assert min(angle_distance(x, state) for x in mine) < 1e-9
+
+
 def test_a_tracker_that_stops_at_events_lands_without_rigid_flows():
     """config/neck.yaml's modules, no head load, rhos {0.15, 0.14, 0.07} as a seeded stream
     left them (bench_round_commands seed 1, stream 9), m0 0.15 -> 0.07 m: the neck reaches

@@ -1373,7 +1373,8 @@ class _Tracker:
         (or ten times flatter than the leg's start), and where a crossing is next to it
         the flow goes on from :meth:`through_crossing`'s half-branch; else (a module
         flat at a linkage limit, no crossing) it flows on.  ``None`` where no way leads
-        out, or after MAX_CROSSING_LEGS legs."""
+        out; after MAX_CROSSING_LEGS legs it flows on without stopping (as before there
+        was this rule: a flow creeping onto a linkage limit is not cut short)."""
         flatness = getattr(self.problem, 'flatness', None)
         if flatness is None:
             return self.flow_to_rest(velocity, y, tol, 1e-10)
@@ -1387,7 +1388,7 @@ class _Tracker:
             if onward is False:
                 return None
             y = rest if onward is None else onward
-        return None
+        return self.flow_to_rest(velocity, y, tol, 1e-10)
 
     def through_crossing(self, y, s):
         """The state to flow on from, where the flow reached ``y`` next to a flat

@@ -734,7 +734,11 @@ def _closest_to_a_change_point(system, base, sol, s, start):
     if sol.status == 1 and sol.t_events[1].size:
         return end
     start_sides = np.sign(np.sin(start))
-    if not np.any(np.all((start_sides * np.sign(np.sin(end))).reshape(-1, 2) < 0, axis=1)):
+    turned = np.all((start_sides * np.sign(np.sin(end))).reshape(-1, 2) < 0, axis=1)
+    # (the top module has no chord above it, so no change point: its rods turning through
+    # its base line is no sign of one; taken for one, the leg's start was returned, next to
+    # the crossing just left, and the flow went back to it without end)
+    if not np.any(turned[:-1]):
         return None
     samples = [base + sol.sol(t) for t in np.linspace(0.0, float(sol.t[-1]), 201)]
     flatness = [system.singular_chord(x, s) for x in samples]

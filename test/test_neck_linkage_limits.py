@@ -413,24 +413,17 @@ def test_a_module_driven_flat_under_load_stops_at_its_linkage_limit():
     assert got.final.stable
 
 
-def test_a_landing_flow_stalled_at_a_flat_module_gives_up_within_its_budget():
+def test_a_landing_flow_through_a_flat_crossing_takes_the_reference_paths_half_branch():
     """config/neck.yaml's modules as a seeded stream left them (bench_round_commands seed
-    0, stream 16: module 1 at its linkage limit, rho1 + rho2 = 0.24, m0 hanging down), head
-    load -2 -> +1 N: the neck folds at s = 0.627 with modules 1 and 2 almost flat.  The
-    landing's rigid flow reaches module 1's flat crossing, where it does not rest: which
-    branch the neck takes there (the reference's change-point rule) is not the tracker's
-    to say yet, so it gives up ('could not land after the fold').  Each rigid flow spent
-    the whole flow budget there (200000 evaluations, 16 s; the command over 20 s), now
-    an eighth of it."""
-    from tensegrity_ros.core import continuation
-    from tensegrity_ros.core.stack import StackPath
-    counted = [0]
-
-    class Counted(StackPath):
-        def rigid_descent(self, y, s):
-            counted[0] += 1
-            return super().rigid_descent(y, s)
-
+    0, stream 16: module 1 at its linkage limit, rho1 + rho2 = 0.24 = L1 + L2, m0 hanging
+    down), head load -2 -> +1 N: the neck folds at s = 0.627 with modules 1 and 2 almost
+    flat.  The landing's rigid flow reaches module 1's flat crossing, where it stalls (the
+    projection on the chord is undefined there): was 'could not land after the fold',
+    after each rigid flow had spent its budget.  The tracker now goes on, as the
+    reference's flow does, along the steepest of the half-branches leaving the crossing;
+    the two leaving ones are mirror images of each other within 3e-4 of their descent
+    rates, and land on mirror images, so the jump is ambiguous (so says the reference) and
+    either landing is right."""
     start = neck_yaml((0.11, 0.09, 0.15), -2.0)
     end = neck_yaml((0.11, 0.09, 0.15), 1.0)
     state = np.array([4.797937458533063, 4.631076826745917, 3.2129635268714893,
@@ -438,11 +431,40 @@ def test_a_landing_flow_stalled_at_a_flat_module_gives_up_within_its_budget():
                       -3.2558463920996448, -1.845205163904667])
     held = track_stack(start, start, state).final
     assert held.stable
-    got = continuation.track(Counted(start, end), held.state)
-    assert got.status == 'failed'
-    assert got.message.startswith('could not land after the fold at s=0.627'), got.message
-    budget = continuation.TrackerSettings().flow_evaluations
-    assert counted[0] <= 2 * (budget // 8 + 100), counted[0]
+    mine = track_stack(start, end, held)
+    assert mine.status == 'ok', mine.message
+    ref = quasi_static_path(NeckSystem(start.modules, end.modules), np.ravel(held.theta))
+    assert [j.kind for j in mine.jumps] == [j.kind for j in ref.jumps] == ['fold']
+    jump, theirs = mine.jumps[0], ref.jumps[0]
+    assert abs(jump.s - theirs.s) < 1e-6
+    assert jump.ambiguous and theirs.ambiguous
+    landing = np.ravel(jump.to_theta)
+    assert min(angle_distance(landing, theirs.landing),
+               angle_distance(mirrored(landing), theirs.landing)) < 1e-6, (landing, theirs.landing)
+    final = np.ravel(mine.final.theta)
+    assert min(angle_distance(final, ref.final),
+               angle_distance(mirrored(final), ref.final)) < 1e-6, (final, ref.final)
+
+
+def test_a_flat_crossings_half_branches_are_the_reference_ones():
+    """The crossing the tracker finds next to a state with module 1 8e-4 rad from flat
+    (rho1 + rho2 = L1 + L2, as in stream 16 above), and its four half-branch states
+    1e-4 rad out, are the reference's (``change_point_branches``, in the local angles
+    of its own model), to 1e-9 rad."""
+    from tensegrity_ros.core import flat_crossing
+    from tensegrity_ros.core.stack import StackPath
+    stack = neck_yaml((0.11, 0.09, 0.15), -2.0)
+    path = StackPath(stack, stack)
+    y = path.state_from_angles([[-0.578, -0.593], [6e-4, -8e-5], [-0.007, -0.0097]], 0.0)
+    module, crossing, states = flat_crossing.crossing_at(path, y, 0.0)
+    theirs, their_states = NeckSystem(stack.modules).change_point_branches(
+        np.ravel(path.angles(y, 0.0)), 0.0)
+    assert module == 1
+    assert angle_distance(np.ravel(path.angles(crossing, 0.0)), theirs) < 1e-9
+    mine = [np.ravel(path.angles(x, 0.0)) for x in states]
+    assert len(mine) == len(their_states) == 4
+    for state in their_states:
+        assert min(angle_distance(x, state) for x in mine) < 1e-9
 
 
 def test_a_tracker_that_stops_at_events_lands_without_rigid_flows():

@@ -67,6 +67,11 @@ LOCATION_TOL = 1e-9
 #: rho's rounding, and ended 'past' it 8e-9 rad out, a state the next command back up
 #: could not leave (the time budget ran out).
 UNRESOLVED = 1e-11
+#: A rigid landing flow leg stops to look for a flat crossing once the flattest module's
+#: chord gradient (over l_ref) is below this (see ``_Tracker.rigid_flow_to_rest``); it
+#: goes on through at most MAX_CROSSING_LEGS such stops per flow.
+CROSSING_APPROACH = 1e-3
+MAX_CROSSING_LEGS = 16
 
 
 class PathProblem(Protocol):
@@ -288,6 +293,9 @@ class _Tracker:
         #: (s, state, eigenvalues) of the last state of :meth:`run` whose lambda_min passed
         #: the margin test 100-fold, on the branch tracked since (see :meth:`toward_branch_point`).
         self.clear_of_margin = None
+        #: States out along the other half-branches of the flat crossings a landing flow
+        #: passed (see :meth:`through_crossing`).
+        self.crossing_alternatives = []
         weights = getattr(problem, 'state_weights', None)
         self.weights = None if weights is None else np.asarray(weights, dtype=float)
 
@@ -1284,17 +1292,32 @@ class _Tracker:
         sides.sort(key=lambda t: t[0])
         if kind == FOLD:
             sides = sides[:1]
-        landings = []
+        landings, alternatives = [], []
         for _, _, start in sides:
+            self.crossing_alternatives = []
             landing = self.slide(start, s_land)
             if landing is not None:
                 landings.append(landing)
+                alternatives += self.crossing_alternatives
         if not landings:
             raise TrackingError(f'could not land after the {kind} at s={float(s_star)!r}')
         landings.sort(key=lambda y: problem.energy(y, s_land))
         ambiguous = (len(landings) == 2
                      and self.separation(landings[0], landings[1]) > 1e-6)
-        return landings[0], ambiguous
+        return landings[0], ambiguous or self.lands_elsewhere(alternatives, landings[0], s_land)
+
+    def lands_elsewhere(self, alternatives, landing, s):
+        """Whether a rigid flow from one of the ``alternatives`` (states out along the
+        other half-branches of a flat crossing the landing flow passed) rests more than
+        1e-6 from ``landing``: then the landing is ambiguous, as where the two sides of a
+        branch point land differently (e.g. the mirror images of a symmetric neck, when
+        the steepest half-branch wins by 3e-4 of its descent rate: config/neck.yaml,
+        bench_round_commands seed 0, stream 16).  Their own crossings are not followed up."""
+        for state in alternatives:
+            other = self.slide(state, s, rigid_first=True)
+            if other is not None and self.separation(other, landing) > 1e-6:
+                return True
+        return False
 
     def separation(self, a, b):
         """Distance of two states (weighted), with angles compared modulo 2 pi."""
@@ -1321,7 +1344,7 @@ class _Tracker:
         needed = 1e-4 * self.scale / rate if rate > 0 else 1e-3
         return max(cfg.landing_offset, min(needed, 1e-3))
 
-    def slide(self, y, s):
+    def slide(self, y, s, rigid_first=False):
         """Overdamped gradient flow at fixed s until it comes to rest, then Newton polish.
 
         Integrated by scipy's LSODA stepper (stiff-capable: the flow is slow near
@@ -1331,7 +1354,8 @@ class _Tracker:
         off the constraints (the problem's ``descent`` may treat them as slightly
         elastic, to glide through kinematic singularities), it flowed in another model:
         the flow starts over from the same state by the problem's optional
-        ``rigid_descent``, which rests only on equilibria of the model itself.
+        ``rigid_descent``, which rests only on equilibria of the model itself
+        (``rigid_first``: from the start, as from a flat crossing's half-branch).
         """
         problem = self.problem
         flow = [problem.descent]
@@ -1339,10 +1363,12 @@ class _Tracker:
         # to rounding, are never kept but where the minimum goes on; there the rigid flows
         # only cost: seed 1, stream 10 of bench_round_commands, 14 in one such run, 40 s)
         rigid = None if self.stop_at_events else getattr(problem, 'rigid_descent', None)
+        if rigid_first and rigid is not None:
+            flow[0] = rigid
         # Far below any velocity met on the way (near a fold's ghost the landing
         # offset keeps it above ~1e-7 scale), so the flow stops only at rest.
         tol = 1e-10 * self.scale
-        budget = [self.settings.flow_evaluations]
+        budget = [self.settings.flow_evaluations // (8 if flow[0] is rigid else 1)]
 
         def velocity(_t, v):
             budget[0] -= 1
@@ -1357,7 +1383,8 @@ class _Tracker:
                 # a rigid flow near a flat module is integrated as accurately as the
                 # reference's: there its way (and its rest) turns on ~1e-7 of it (it rested
                 # at the crossing of two branches, or crossed onto the other one)
-                rest = self.flow_to_rest(velocity, y, tol, 1e-10 if flow[0] is rigid else 1e-7)
+                rest = (self.rigid_flow_to_rest(velocity, y, s, tol) if flow[0] is rigid
+                        else self.flow_to_rest(velocity, y, tol))
             except _FlowBudgetExceeded:
                 return None
             if rest is None:
@@ -1407,16 +1434,61 @@ class _Tracker:
         slack = 1e-12 * (abs(energies[0]) + self.scale)
         return all(e1 <= e0 + slack for e0, e1 in zip(energies, energies[1:]))
 
-    def flow_to_rest(self, velocity, y, tol, rtol=1e-7):
-        """Integrate dy/dt = velocity until |velocity| <= tol; ``None`` if the solver fails."""
+    def flow_to_rest(self, velocity, y, tol, rtol=1e-7, stop=None):
+        """Integrate dy/dt = velocity until |velocity| <= tol (or ``stop(y)``); ``None``
+        if the solver fails."""
         with np.errstate(all='ignore'):
             solver = LSODA(velocity, 0.0, y, 1e7 / self.scale, rtol=rtol, atol=1e-3 * rtol)
             while solver.status == 'running':
                 checkpoint()            # between solver steps (and inside: velocity)
                 solver.step()
-                if _inf_norm(velocity(solver.t, solver.y)) <= tol:
+                if _inf_norm(velocity(solver.t, solver.y)) <= tol or (
+                        stop is not None and stop(solver.y)):
                     return solver.y
         return solver.y if solver.status == 'finished' else None
+
+    def rigid_flow_to_rest(self, velocity, y, s, tol):
+        """:meth:`flow_to_rest` for the rigid flow, going on through the flat crossings
+        of the problem's linkage (its optional ``flatness`` and ``crossing_ways``).
+
+        At a module's flat crossing the projected flow stalls (the projection is
+        undefined there) where the mechanism goes on along one of the half-branches
+        leaving it: each leg stops once the flattest module is CROSSING_APPROACH flat
+        (or ten times flatter than the leg's start), and where a crossing is next to it
+        the flow goes on from :meth:`through_crossing`'s half-branch; else (a module
+        flat at a linkage limit, no crossing) it flows on.  ``None`` where no way leads
+        out; after MAX_CROSSING_LEGS legs it flows on without stopping (as before there
+        was this rule: a flow creeping onto a linkage limit is not cut short)."""
+        flatness = getattr(self.problem, 'flatness', None)
+        if flatness is None:
+            return self.flow_to_rest(velocity, y, tol, 1e-10)
+        for _ in range(MAX_CROSSING_LEGS):
+            level = min(CROSSING_APPROACH, 0.1 * flatness(y, s))
+            rest = self.flow_to_rest(velocity, y, tol, 1e-10,
+                                     stop=lambda v: flatness(v, s) < level)
+            if rest is None or flatness(rest, s) >= level:
+                return rest
+            onward = self.through_crossing(rest, s)
+            if onward is False:
+                return None
+            y = rest if onward is None else onward
+        return self.flow_to_rest(velocity, y, tol, 1e-10)
+
+    def through_crossing(self, y, s):
+        """The state to flow on from, where the flow reached ``y`` next to a flat
+        crossing: out along the half-branch of steepest descent (the energy drop per
+        unit length from the crossing, :func:`.flat_crossing.ways_out`) among those the
+        mechanism moves away on; the others are kept in ``crossing_alternatives``
+        (a landing that passed one is ambiguous where they land elsewhere).  None if
+        ``y`` is at no crossing; False if no half-branch leads away (it rests there)."""
+        ways = self.problem.crossing_ways(y, s)
+        if ways is None:
+            return None
+        if not ways:
+            return False
+        ways.sort(key=lambda way: way[0], reverse=True)
+        self.crossing_alternatives.extend(state for _, state in ways[1:])
+        return ways[0][1]
 
     def step_off_vector(self, mode):
         """``mode`` scaled to the step-off distance in the weighted state norm."""

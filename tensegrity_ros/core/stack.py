@@ -37,6 +37,7 @@ from scipy.linalg.lapack import dgeqrf as _dgeqrf, dormqr as _dormqr, dsygv as _
 from scipy.optimize import root
 
 from . import continuation as _continuation
+from . import flat_crossing as _flat_crossing
 from .continuation import TrackerSettings
 from .module import ModuleParams, PARAMETER_NAMES, InvalidParameterError
 from .stack_fast_step import keep_final_point, whole_command_step
@@ -859,6 +860,16 @@ class StackPath:
         force = abs(float(y[self.topology.n_rods + i])) * self.f_ref
         return (f'module {i} folded flat onto its top chord (its rods and chord in one '
                 f'line; chord force {force:.3g} N)')
+
+    def flatness(self, y, s):
+        """How near the flattest module with a chord above it is to flat (its chord's
+        gradient in the module's own angles over l_ref; inf for one module)."""
+        return _flat_crossing.flatness(self, y, s)[1]
+
+    def crossing_ways(self, y, s):
+        """The ways out of a module's flat crossing next to ``y`` (see
+        :func:`.flat_crossing.ways_out`), or None if there is none."""
+        return _flat_crossing.ways_out(self, y, s)
 
     def _unresolved(self, y, s, smallest):
         """Whether a chord's gradient ``smallest`` is small (< 1e-2 l_ref) and the KKT

@@ -521,9 +521,15 @@ class _Tracker:
         minimum (lambda_min positive) next to a passed pitchfork, or a supercritical
         branch point itself (:meth:`at_branch_point`)."""
         if self.certificate == BRANCH_POINT_CERTIFIED:
-            return bool(self.definite(eigenvalues[1:])
-                        and verified_minimum(eigenvalues, BRANCH_POINT_CERTIFIED))
+            return self.degenerate_minimum(eigenvalues)
         return bool(self.certificate and self.soft_minimum(eigenvalues))
+
+    def degenerate_minimum(self, eigenvalues):
+        """Every eigenvalue but lambda_min passes the margin test and lambda_min is zero
+        to within it, either sign (a supercritical branch point itself: see
+        :meth:`at_branch_point`)."""
+        return bool(self.definite(eigenvalues[1:])
+                    and verified_minimum(eigenvalues, BRANCH_POINT_CERTIFIED))
 
     def soft_minimum(self, eigenvalues):
         """lambda_min positive and every other eigenvalue passes the margin test."""
@@ -880,12 +886,9 @@ class _Tracker:
         # amplifies a 1e-5 asymmetry of the mode ~1e6-fold: 4.9e-6 .. 2.6e-3 against
         # branch_tol 1e-6 at config/neck.yaml's mirror-symmetric pitchforks 1e-4 in s
         # before a module folds flat; true folds there: >= 4.5e-2).
-        buckled = self.buckled_minimum(s_star, y_star, s_end)
+        buckled = self.follow_buckled(s_star, y_star, s_end)
         if buckled is not None:                 # supercritical: no jump, the state goes on
-            y_end, s_at, passed = buckled
-            if passed:
-                self.passages.append((s_star, y_star))
-            return y_end, s_at, None
+            return buckled
         offset = self.landing_offset(kind, y_star, s_star)
         s_land = s_star + offset
         if s_land > s_end and not _admissible(problem, s_land):
@@ -972,9 +975,10 @@ class _Tracker:
         near = self.buckled_at(s_star, y_star, y, s, s_end)
         if near is not None:
             return near, s_end, True
-        at = self.at_branch_point(s_star, y_star, s_end, LOCATION_TOL)
-        if at is not None:
-            return at, s_end, False
+        if s_end - s_star > UNRESOLVED:         # (closer: tried above)
+            at = self.at_branch_point(s_star, y_star, s_end, LOCATION_TOL)
+            if at is not None:
+                return at, s_end, False
         back = _Tracker(_Segment(self.problem, s, s_end), self.settings).run(y)
         if back.status != 'ok' or back.events:
             raise TrackingError(f'the buckled state after the branch point at s={float(s_star)!r} '
@@ -990,14 +994,19 @@ class _Tracker:
         jump from it would be false)."""
         self.certificate = ''           # the buckled state's own, if any (buckled_at)
         try:
-            found = self.buckled_minimum(s, y, s_end)
+            return self.follow_buckled(s, y, s_end)
         except TrackingError:
             return None
-        if found is None:
+
+    def follow_buckled(self, s_star, y_star, s_end):
+        """:meth:`buckled_minimum` as a move past the branch point: (state, s, None), the
+        branch point listed in the passages where it was passed, or ``None``."""
+        buckled = self.buckled_minimum(s_star, y_star, s_end)
+        if buckled is None:
             return None
-        y_end, s_at, passed = found
+        y_end, s_at, passed = buckled
         if passed:
-            self.passages.append((s, y))
+            self.passages.append((s_star, y_star))
         return y_end, s_at, None
 
     def at_branch_point(self, s_star, y_star, s_end, within):
@@ -1017,9 +1026,7 @@ class _Tracker:
         found = self.newton(y_star, s_end)
         if found is None or self.separation(found, y_star) > self.settings.passage_radius:
             return None
-        eigenvalues = self.eigenvalues(found, s_end)
-        if not (self.definite(eigenvalues[1:]) and verified_minimum(eigenvalues,
-                                                                    BRANCH_POINT_CERTIFIED)):
+        if not self.degenerate_minimum(self.eigenvalues(found, s_end)):
             return None
         self.certificate = BRANCH_POINT_CERTIFIED
         return found
@@ -1368,7 +1375,11 @@ class _Tracker:
         # Far below any velocity met on the way (near a fold's ghost the landing
         # offset keeps it above ~1e-7 scale), so the flow stops only at rest.
         tol = 1e-10 * self.scale
-        budget = [self.settings.flow_evaluations // (8 if flow[0] is rigid else 1)]
+        # a rigid flow gets an eighth of the budget: stalled at a flat module, where it
+        # does not rest, it used it all (16 s on config/neck.yaml; 14000 evaluations the
+        # most a landing took there)
+        rigid_budget = self.settings.flow_evaluations // 8
+        budget = [rigid_budget if flow[0] is rigid else self.settings.flow_evaluations]
 
         def velocity(_t, v):
             budget[0] -= 1
@@ -1393,10 +1404,7 @@ class _Tracker:
             if (rigid is not None and flow[0] is not rigid
                     and self.step_norm(projected - rest) > self.settings.same_state_tol):
                 flow[0] = rigid             # it rested as elastic chords: the same flow, rigid
-                # (with an eighth of the budget: stalled at a flat module, where it does not
-                # rest, a rigid flow used it all, 16 s on config/neck.yaml; 14000
-                # evaluations the most a landing took there)
-                budget[0] = min(budget[0], self.settings.flow_evaluations // 8)
+                budget[0] = min(budget[0], rigid_budget)
                 continue
             y = projected
             polished = self.newton(y, s)

@@ -96,6 +96,7 @@ import os
 
 import numpy as np
 import pytest
+from scipy.optimize import root
 
 from tensegrity_ros.core import ModuleParams, settle, track_module
 from tensegrity_ros.core.continuation import TrackingError
@@ -553,6 +554,66 @@ def test_reference_flow_goes_on_past_a_flat_module_at_its_linkage_limit():
     mine = np.ravel(got.final.theta)
     mirrored = mine.reshape(-1, 2)[:, ::-1].ravel()
     assert min(angle_distance(rest.state, mine), angle_distance(rest.state, mirrored)) < 1e-6
+
+
+#: config/neck.yaml's modules and a state a failed landing left them on (bench_round_commands
+#: seed 1, stream 2, on session 10's tree): next to a fold, residual 7.5e-8 (within the
+#: 1.1e-7 tolerance), Newton from it converging only by halves (a double root).
+FOLD_LEFT_RHOS = (0.09434729203425579, 0.13660837522054506, 0.10339162477945435)
+FOLD_LEFT_STATE = [0.27681784026725126, 2.8675966438573153, -0.0019192080096596968,
+                   3.2058574817687386, 0.382606907522194, 2.898939999750534,
+                   -1.0286755404347914, -0.4957783639862547]
+FOLD_LEFT_TO = (0.05, 0.12, 0.1)
+
+
+def fold_left_neck(fraction):
+    """The neck of FOLD_LEFT_STATE, and moved ``fraction`` of the way to FOLD_LEFT_TO."""
+    base = ModuleParams(rho=0.1, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02,
+                        m2=0.02)
+    modules = [base.with_(rho=rho) for rho in FOLD_LEFT_RHOS]
+    modules[2] = modules[2].with_(f3y=-2.0, f4y=-2.0)
+    start = Stack(tuple(modules))
+    return start, Stack(tuple(m.with_(rho=r + fraction * (t - r))
+                              for m, r, t in zip(modules, FOLD_LEFT_RHOS, FOLD_LEFT_TO)))
+
+
+def test_a_neck_command_from_a_state_left_at_a_fold_jumps_at_its_start():
+    """A state within what Newton resolves of a fold (its last update 1.4e-5 rad, halving):
+    the reference's own fold equations {KKT = 0, det = 0}, solved from it, put the fold
+    2.5e-9 of the command before it, so every command on into the fold jumps at once,
+    from 1e-9 of the command to all of it, onto the state the reference's overdamped flow
+    rests on from there; commands back, past the fold, go on without a jump.  On the
+    tracker before this test every command on failed ('step size underflow at s=0.0').
+    (Not asserted: the 1e-9 command's jump is marked ambiguous, its landing flow passing
+    module 1's flat crossing, whose other half-branches rest 0.33 rad away; the
+    reference's flow from the start there sees no crossing.)"""
+    start, end = fold_left_neck(1.0)
+    system = NeckSystem(start.modules, end.modules)
+    y = np.array(FOLD_LEFT_STATE)
+    theta = np.ravel(track_stack(start, start, y).final.theta)       # (the state is held)
+    z0 = np.concatenate([theta, system.multipliers(theta, 0.0), [0.0]])
+    fold = root(system.critical_residual, z0, method='hybr', options={'xtol': 1e-14}).x
+    assert np.max(np.abs(system.critical_residual(fold))) < 1e-10
+    assert abs(fold[-1]) < 1e-8 and angle_distance(fold[:6], theta) < 1e-4
+    landings = []
+    for fraction in (1e-9, 1e-6, 1e-3, 1.0):
+        got = track_stack(start, fold_left_neck(fraction)[1], y)
+        assert got.status == 'ok', (fraction, got.message)
+        (jump,) = got.jumps
+        assert jump.kind == 'fold' and jump.s == 0.0, jump
+        landing = np.ravel(jump.to_theta)
+        at = NeckSystem(jump.landing_stack.modules)
+        assert at.is_stable_equilibrium(landing, 0.0)
+        assert angle_distance(flow_to_rest(at, theta, 0.0).state, landing) < 1e-6
+        landings.append(landing)
+    assert angle_distance(landings[0], landings[-1]) < 1e-4        # the same state
+    assert angle_distance(landings[0], theta) > 0.5                # module 2 snaps over
+    for fraction in (-1e-6, -1e-3):
+        got = track_stack(start, fold_left_neck(fraction)[1], y)
+        assert got.status == 'ok' and got.jumps == (), (fraction, got.message)
+        back = NeckSystem(got.end.modules)
+        assert back.is_stable_equilibrium(np.ravel(got.final.theta), 0.0)
+        assert angle_distance(np.ravel(got.final.theta), theta) < 1e-2
 
 
 # -- the nearly symmetric N = 3 neck of the issue -----------------------------------------------

@@ -67,6 +67,14 @@ LOCATION_TOL = 1e-9
 #: rho's rounding, and ended 'past' it 8e-9 rad out, a state the next command back up
 #: could not leave (the time budget ran out).
 UNRESOLVED = 1e-11
+#: A Newton update (relative to 1 + |y|) left above this where Newton stopped converging:
+#: the state is not resolved to what its eigenvalues need.  Newton from an equilibrium
+#: stops at updates of ~1e-14 (rounding); next to a fold it converges only linearly (by
+#: 1/2 an iterate, the Jacobian singular at the double root), and stops at the first
+#: update that does not halve: 1.4e-5 rad from a state config/neck.yaml was left on
+#: after a failed landing (residual 1.9e-8, within the 1.1e-7 tolerance; lambda_min
+#: 0.013 N/m there, ~0 at the fold).
+UNRESOLVED_UPDATE = 1e-9
 #: A rigid landing flow leg stops to look for a flat crossing once the flattest module's
 #: chord gradient (over l_ref) is below this (see ``_Tracker.rigid_flow_to_rest``); it
 #: goes on through at most MAX_CROSSING_LEGS such stops per flow.
@@ -290,6 +298,9 @@ class _Tracker:
         self.normal_form_tried = None   # the s it was tried at (once per state)
         #: The last verified state of :meth:`run` (what a spent time budget returns).
         self.kept = None
+        self.newton_unresolved = False  # the last newton() stopped short of rounding level
+        #: The start, where Newton did not resolve it (see :meth:`end_at_rounding`).
+        self.unresolved_start = None
         #: (s, state, eigenvalues) of the last state of :meth:`run` whose lambda_min passed
         #: the margin test 100-fold, on the branch tracked since (see :meth:`toward_branch_point`).
         self.clear_of_margin = None
@@ -322,7 +333,7 @@ class _Tracker:
         """
         tol = self.settings.residual_tol * self.scale
         contraction = self.contraction
-        previous = math.inf
+        previous = size = math.inf
         f = self.problem.residual(y, s)
         for _ in range(self.settings.newton_iterations):
             try:
@@ -337,6 +348,7 @@ class _Tracker:
             previous = size
             if size <= 1e-14 * (1.0 + _inf_norm(y)):
                 break
+        self.newton_unresolved = not size <= UNRESOLVED_UPDATE * (1.0 + _inf_norm(y))
         return y if _inf_norm(f) <= tol else None
 
     # -- one continuation step ----------------------------------------------
@@ -389,6 +401,7 @@ class _Tracker:
             # hold the guess: where the mechanism comes to rest is settle()'s to decide
             raise TrackingError('the start state is not an equilibrium')
         y = y if polished is None else polished
+        self.unresolved_start = y if polished is None or self.newton_unresolved else None
         eigenvalues = self.eigenvalues(y, s)
         if self.definite(eigenvalues):
             self.certificate = ''
@@ -802,15 +815,28 @@ class _Tracker:
         parameter, where lambda_min (a square root of the distance) is still ~1e-6 of
         the scale, above ``critical_tol``; no step of ``min_step`` goes on.  Where
         lambda_min is that small (< ``rounding_critical``) the state is taken as the
-        critical point; land() still decides whether the mechanism jumps."""
+        critical point; land() still decides whether the mechanism jumps.  So is a start
+        Newton did not resolve (see :data:`UNRESOLVED_UPDATE`), whatever its lambda_min,
+        where the command moves the mechanism: it lies at a fold within what Newton
+        resolves (lambda_min is 0 at the fold, and 0.013 N/m at such a start 1.4e-5 rad
+        off; an independent solve of the fold's own equations put that fold 2.5e-9 of the
+        command behind it), and no step leaves it."""
         lam, psi = self.critical(y, s)
-        if not 0.0 < lam < self.settings.rounding_critical:
+        unresolved = lam > 0.0 and y is self.unresolved_start and self.moves(y, s)
+        if not 0.0 < lam < self.settings.rounding_critical and not unresolved:
             return None
         kind = FOLD if self.orthogonality(y, s, psi) > self.settings.branch_tol else BRANCH_POINT
         try:
-            return self.land(kind, s, y, s_end)
+            # (from an unresolved start the fold may lie behind it: where a landing just
+            # past s finds only the fold's ghost, it is retried up to the command's end)
+            return self.land(kind, s, y, s_end, reach=s_end - s if unresolved else 1e-3)
         except TrackingError:
             return None
+
+    def moves(self, y, s):
+        """Whether the path moves the equilibrium conditions at (y, s) (not a command to
+        the same parameters)."""
+        return _inf_norm(self.problem.residual_s(y, s)) > 0.0
 
     def underflow_reason(self, y, s, reason):
         """Why the steps underflowed: a linkage limit the minimum does not cross
@@ -868,7 +894,7 @@ class _Tracker:
         norm = np.linalg.norm(fs)
         return abs(psi @ fs) / norm if norm > 0 else 0.0
 
-    def land(self, kind, s_star, y_star, s_end):
+    def land(self, kind, s_star, y_star, s_end, reach=1e-3):
         """Where the mechanism goes after the critical point: (state, s, event or None).
 
         The parameters are frozen just past the event; the mechanism steps off along
@@ -893,7 +919,8 @@ class _Tracker:
         s_land = s_star + offset
         if s_land > s_end and not _admissible(problem, s_land):
             s_land = s_end
-        landing, ambiguous, s_land = self.landing_state(kind, s_star, y_star, s_land, s_end)
+        landing, ambiguous, s_land = self.landing_state(kind, s_star, y_star, s_land, s_end,
+                                                        reach)
         event = None if self.continuous(kind, s_star, y_star, s_land, landing) else kind
         if s_land > s_end:
             back = _Tracker(_Segment(problem, s_land, s_end), self.settings).run(landing)
@@ -1270,15 +1297,15 @@ class _Tracker:
         return (onward.status == 'ok' and not onward.events
                 and self.separation(onward.state, landing) <= self.settings.passage_radius)
 
-    def landing_state(self, kind, s_star, y_star, s_land, s_end=None):
+    def landing_state(self, kind, s_star, y_star, s_land, s_end=None, reach=1e-3):
         """Step off along the critical mode at frozen s_land and slide: (landing, ambiguous, s_land).
 
         With ``s_end`` given, a flow that finds no minimum (it rests on saddles near
-        the fold's ghost) is retried frozen further past the event, up to 1e-3 in s
+        the fold's ghost) is retried frozen further past the event, up to ``reach`` in s
         (compared as the s it was set to: (s* + 1e-3) - s* may round below 1e-3, and
         the retries then never ended, e.g. s* = 0.999638580089214).
         """
-        last = s_star + 1e-3
+        last = s_star + max(reach, 1e-3)
         while True:
             try:
                 return (*self._land_once(kind, s_star, y_star, s_land), s_land)

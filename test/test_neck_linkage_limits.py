@@ -523,3 +523,50 @@ def test_a_buckled_neck_back_onto_its_symmetric_branch_past_a_flat_module_does_n
     final = np.ravel(track.final.theta)
     assert min(angle_distance(final, ref.final),
                angle_distance(mirrored(final), ref.final)) < 1e-6, (final, ref.final)
+
+
+#: config/neck.yaml's neck where a command stopped at module 1's linkage limit left it
+#: (bench_round_commands seed 3, stream 7: module 1 flat, 3.2e-7 rad, chord force 34 N;
+#: lambda_min 0.045 N/m, residual 1.6e-11): head load 0.294 N, its tracker state.
+AT_LIMIT_RHOS, AT_LIMIT_HEAD = (0.10999999999998769, 0.12500000000000924,
+                                0.11499999999997847), 0.29422245819794735
+AT_LIMIT_STATE = [0.2044801989685769, 2.9371124546211753, 3.1977304540927954e-07,
+                  3.1415923338033607, -0.24955340103716184, 3.391146054599081,
+                  -1.0892820002174797, -0.9494043905950271]
+
+
+@pytest.mark.parametrize('rho', [0.11, 0.05])
+def test_a_command_from_a_state_left_at_a_linkage_limit_is_tracked(rho):
+    """The next command from where a linkage limit stopped the last one (m2's actuator
+    0.115 -> ``rho``) was refused: Newton from the kept state, at the flat module's
+    singular point, went astray to an indefinite state 'polishing' it, so the start was
+    'not a stable equilibrium', and settling found none ('no stable equilibrium reached
+    from the given state': 10 to 21 commands a seed in seeds 2-5).  The kept state is
+    taken as it is (it passes the residual test; Newton did not converge from it), and
+    the command ends where the reference's quasi-static path ends."""
+    start = neck_yaml(AT_LIMIT_RHOS, AT_LIMIT_HEAD)
+    end = start.with_module(2, rho=rho)
+    y = np.array(AT_LIMIT_STATE)
+    track = track_stack(start, end, y)
+    assert track.status == 'ok', track.message
+    ref = quasi_static_path(NeckSystem(start.modules, end.modules),
+                            np.ravel(track_stack(start, start, y).final.theta))
+    assert ref.jumps == [] and track.jumps == ()
+    assert angle_distance(np.ravel(track.final.theta), ref.final) < 1e-6
+
+
+def test_commands_on_from_a_state_left_at_a_linkage_limit_meet_one_fold():
+    """Commands from the same state to three targets past a fold (m2 0.12, 0.13, 0.15 m)
+    each jump once, at the same actuator length to 1e-9 m, onto a stable equilibrium
+    (the reference's Newton and Hessian)."""
+    start = neck_yaml(AT_LIMIT_RHOS, AT_LIMIT_HEAD)
+    at = []
+    for rho in (0.12, 0.13, 0.15):
+        end = start.with_module(2, rho=rho)
+        track = track_stack(start, end, np.array(AT_LIMIT_STATE))
+        assert track.status == 'ok', track.message
+        (jump,) = track.jumps
+        assert jump.kind == 'fold'
+        at.append(jump.stack.modules[2].rho)
+        assert_stable_for_the_reference(start, end, jump.to_theta, jump.s)
+    assert max(at) - min(at) < 1e-9, at

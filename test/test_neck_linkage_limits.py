@@ -11,12 +11,14 @@ limit (the state closes in on the flat state like a square root).
 """
 import numpy as np
 import pytest
+from scipy.optimize import root
 
 from tensegrity_ros.core import ModuleParams
 from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 from tensegrity_ros.core.simulator import Simulator
 
-from reference_paths import ModuleSystem, NeckSystem, angle_distance, quasi_static_path
+from reference_paths import (ModuleSystem, NeckSystem, angle_distance, flow_to_rest,
+                             quasi_static_path)
 
 
 def paper_neck(n, rho=0.75):
@@ -570,3 +572,29 @@ def test_commands_on_from_a_state_left_at_a_linkage_limit_meet_one_fold():
         at.append(jump.stack.modules[2].rho)
         assert_stable_for_the_reference(start, end, jump.to_theta, jump.s)
     assert max(at) - min(at) < 1e-9, at
+
+
+def test_a_step_ending_unresolved_next_to_a_fold_jumps_there():
+    """config/neck.yaml's neck, head load -0.5 N, all three actuators (0.09, 0.085, 0.09)
+    -> (0.14, 0.12, 0.12) m (bench_round_commands seed 2, stream 17): a step ended on a
+    state Newton did not resolve (lambda_min 0.021 of 2098 N/m, Newton's update halving
+    at 2.9e-5), and every step from it was refused ('step size underflow at s=0.756
+    (far)').  It is a fold: the reference's fold equations {KKT = 0, det = 0} solved from
+    the tracker's departure give the same s to 1e-9, and the reference's overdamped flow
+    from the departure rests on the tracker's landing.  (The command then stops at
+    module 0's linkage limit, a stated give-up.)"""
+    start, end = neck_yaml((0.09, 0.085, 0.09), -0.5), neck_yaml((0.14, 0.12, 0.12), -0.5)
+    y = np.array([0.7536928926207191, 2.387899760969074, 0.7536928926207188, 2.387899760969074,
+                  0.7079379081767014, 2.433654745413091, 1.1922131678701695, 1.0275430091216988])
+    track = track_stack(start, end, y)
+    assert 'linkage limit' in track.message, track.message
+    (jump,) = track.jumps
+    assert jump.kind == 'fold'
+    system = NeckSystem(start.modules, end.modules)
+    theta = np.ravel(jump.from_theta)
+    z0 = np.concatenate([theta, system.multipliers(theta, jump.s), [jump.s]])
+    fold = root(system.critical_residual, z0, method='hybr', options={'xtol': 1e-14}).x
+    assert np.max(np.abs(system.critical_residual(fold))) < 1e-10
+    assert abs(fold[-1] - jump.s) < 1e-9 and angle_distance(fold[:6], theta) < 1e-3
+    rest = flow_to_rest(system, theta, jump.s)
+    assert angle_distance(rest.state, np.ravel(jump.to_theta)) < 1e-6

@@ -299,8 +299,9 @@ class _Tracker:
         #: The last verified state of :meth:`run` (what a spent time budget returns).
         self.kept = None
         self.newton_unresolved = False  # the last newton() stopped short of rounding level
-        #: The start, where Newton did not resolve it (see :meth:`end_at_rounding`).
-        self.unresolved_start = None
+        #: The start, or the state a step ended on, where Newton did not resolve it (see
+        #: :meth:`end_at_rounding`).
+        self.unresolved = None
         #: (s, state, eigenvalues) of the last state of :meth:`run` whose lambda_min passed
         #: the margin test 100-fold, on the branch tracked since (see :meth:`toward_branch_point`).
         self.clear_of_margin = None
@@ -406,7 +407,7 @@ class _Tracker:
             # hold the guess: where the mechanism comes to rest is settle()'s to decide
             raise TrackingError('the start state is not an equilibrium')
         y = y if polished is None else polished
-        self.unresolved_start = y if polished is None or self.newton_unresolved else None
+        self.unresolved = y if polished is None or self.newton_unresolved else None
         eigenvalues = self.eigenvalues(y, s)
         if self.definite(eigenvalues):
             self.certificate = ''
@@ -436,6 +437,8 @@ class _Tracker:
                 self.certificate = PITCHFORK_CERTIFIED if certified else ''
                 rate = self.last_rate = (eig1[0] - eigenvalues[0]) / ds
                 y, s, eigenvalues = y1, s + ds, eig1
+                if self.newton_unresolved:          # (try_step's Newton: the last one run)
+                    self.unresolved = y
                 self.keep(y, s, eigenvalues, events)
                 self.note_margin(y, s, eigenvalues)
                 self.rescale(eigenvalues)
@@ -820,14 +823,14 @@ class _Tracker:
         parameter, where lambda_min (a square root of the distance) is still ~1e-6 of
         the scale, above ``critical_tol``; no step of ``min_step`` goes on.  Where
         lambda_min is that small (< ``rounding_critical``) the state is taken as the
-        critical point; land() still decides whether the mechanism jumps.  So is a start
-        Newton did not resolve (see :data:`UNRESOLVED_UPDATE`), whatever its lambda_min,
-        where the command moves the mechanism: it lies at a fold within what Newton
-        resolves (lambda_min is 0 at the fold, and 0.013 N/m at such a start 1.4e-5 rad
-        off; an independent solve of the fold's own equations put that fold 2.5e-9 of the
-        command behind it), and no step leaves it."""
+        critical point; land() still decides whether the mechanism jumps.  So is a state
+        Newton did not resolve (see :data:`UNRESOLVED_UPDATE`; the start, or where a step
+        ended), whatever its lambda_min, where the command moves the mechanism: it lies at
+        a fold within what Newton resolves (lambda_min is 0 at the fold, and 0.013 N/m at
+        such a start 1.4e-5 rad off; an independent solve of the fold's own equations put
+        that fold 2.5e-9 of the command behind it), and no step leaves it."""
         lam, psi = self.critical(y, s)
-        unresolved = lam > 0.0 and y is self.unresolved_start and self.moves(y, s)
+        unresolved = lam > 0.0 and y is self.unresolved and self.moves(y, s)
         if not 0.0 < lam < self.settings.rounding_critical and not unresolved:
             return None
         kind = FOLD if self.orthogonality(y, s, psi) > self.settings.branch_tol else BRANCH_POINT

@@ -828,9 +828,13 @@ class _Tracker:
         ended), whatever its lambda_min, where the command moves the mechanism: it lies at
         a fold within what Newton resolves (lambda_min is 0 at the fold, and 0.013 N/m at
         such a start 1.4e-5 rad off; an independent solve of the fold's own equations put
-        that fold 2.5e-9 of the command behind it), and no step leaves it."""
+        that fold 2.5e-9 of the command behind it), and no step leaves it.  Not at a linkage
+        limit, where Newton does not resolve the state either: what happens there is
+        :meth:`through_linkage_limit`'s to say (the rigid-chord model does not say where
+        the mechanism goes)."""
         lam, psi = self.critical(y, s)
-        unresolved = lam > 0.0 and y is self.unresolved and self.moves(y, s)
+        unresolved = (lam > 0.0 and y is self.unresolved and self.moves(y, s)
+                      and not self.linkage_limit(y, s))
         if not 0.0 < lam < self.settings.rounding_critical and not unresolved:
             return None
         kind = FOLD if self.orthogonality(y, s, psi) > self.settings.branch_tol else BRANCH_POINT
@@ -841,6 +845,10 @@ class _Tracker:
         except TrackingError:
             return None
 
+    def linkage_limit(self, y, s):
+        """The problem's description of the linkage limit at (y, s) ('' where none)."""
+        return getattr(self.problem, 'linkage_limit', lambda *_: '')(y, s)
+
     def moves(self, y, s):
         """Whether the path moves the equilibrium conditions at (y, s) (not a command to
         the same parameters)."""
@@ -850,7 +858,7 @@ class _Tracker:
         """Why the steps underflowed: a linkage limit the minimum does not cross
         continuously (the rigid-chord model does not say where the mechanism goes: its
         chord force grows without bound), or the failed step's reason."""
-        limit = getattr(self.problem, 'linkage_limit', lambda *_: '')(y, s)
+        limit = self.linkage_limit(y, s)
         if limit:
             return (f'linkage limit at s={float(s)!r}: {limit}; no minimum goes on continuously '
                     f'past it, and the rigid-chord model does not say where the mechanism goes')

@@ -579,14 +579,37 @@ class NeckSystem:
         return crossing, states
 
     def energy_seen_from(self, star, theta, s):
-        """The Lagrangian U + mu* . c at theta, mu* the multipliers of the constrained
-        minimum star (equal to U there): the energy to compare with star's.  U alone
+        """The energy at theta put back on the constraints at s (the shortest way: min-norm
+        Gauss-Newton steps), to compare with the constrained minimum star's.  U alone
         moves to first order off the constraint set (the chord forces): a state rested
         at a nearby s lies ~1e-7 off it after a 1e-7 step in s, its U then differs by
         ~mu 1e-7 (3.7e-6 J next to the N = 3 chord ramp's fold), more than the minimum's
-        own energy drop."""
+        own energy drop.  The Lagrangian U + mu* . c at theta (mu* star's multipliers)
+        removes that first-order term but not the second-order one, mu* c'' d^2 / 2 over
+        the distance d off the constraints: next to a module's flat crossing mu* is huge
+        (the chord's gradient ~0) and c'' indefinite, and the Lagrangian put y_a 1.3e-4 J
+        below the minimum it continues to (config/neck.yaml, bench_round_commands seed 0
+        stream 7, mu* ~ -6000 N: the bisection then lost the fold at s = 0.5 + 2.2e-10).
+        Put back on the constraints, U is compared where star's is (the Lagrangian term
+        stays for what the projection leaves, ~rounding)."""
+        theta = self.projected(theta, s)
         mu = self.multipliers(star, s)
         return self.energy(theta, s) + float(mu @ self.constraints(theta, s))
+
+    def projected(self, theta, s, steps=8):
+        """theta moved onto the chord constraints at s by min-norm Gauss-Newton steps
+        (theta itself if they do not converge: the caller's comparison is then first-order)."""
+        theta = np.array(theta, dtype=float)
+        tol = 1e-15 * float(np.max(self.values(s)[:, 1:3]))
+        y = theta
+        for _ in range(steps):
+            c = self.constraints(y, s)
+            if c.size == 0 or np.max(np.abs(c)) <= tol:
+                return y
+            y = y - np.linalg.lstsq(self.constraint_jacobian(y, s), c, rcond=None)[0]
+        c = self.constraints(y, s)
+        return y if np.max(np.abs(c)) <= 1e3 * tol and angle_distance(y, theta) < CLOSE_DISTANCE \
+            else theta
 
     def is_stable_equilibrium(self, theta, s, tol=1e-8):
         theta = np.asarray(theta, dtype=float).ravel()
@@ -1002,10 +1025,14 @@ def _continues(system, y_a, s_b, landing):
     """Whether ``landing`` is the minimum y_a continues to at s_b: Newton from y_a ends on
     a stable point that is the landing (modulo 2 pi).  Next to a fold the branch moves
     like sqrt(s* - s), ~1e-5 rad over a bisection bracket, more than any fixed
-    "same state" distance that still tells a small jump from no jump."""
+    "same state" distance that still tells a small jump from no jump.  But only that far
+    (CLOSE_DISTANCE): Newton's own steps are not a path of rest points, and where the
+    branch ends next to a module's flat crossing Newton from y_a went 0.0475 rad in one
+    solve to the minimum the mechanism jumps to (seed 0 stream 7, see energy_seen_from)."""
     star, ok = system.critical_point(y_a, s_b)
     return bool(ok and system.stability(star, s_b)[0][0] > 0
-                and angle_distance(star, landing) <= 1e-9)
+                and angle_distance(star, landing) <= 1e-9
+                and angle_distance(star, y_a) <= CLOSE_DISTANCE)
 
 
 def _nearby_minimum(system, y_a, s_m, y_b):

@@ -81,10 +81,8 @@ CHANGE_POINT_GRADIENT = 1e-2
 CHANGE_POINT_PUSH = 1e-4
 #: A KKT point counts (Newton converged) only where the chord constraints fix it to this
 #: (rad, NeckSystem.chord_rounding_radius), ~1e-7 rad or more from a module's flat crossing:
-#: closer, Newton's residual says nothing and the crossing's half-branches decide (see
-#: _through_change_point).  Seed 0 stream 6 at s = 1 (rho0 + rho1 = L1 + L2 + 3e-17):
-#: Newton "converged" 2e-8 rad from the crossing (radius 3e-8), where two half-branches
-#: leave downhill (0.054 J/rad) and the mechanism snaps 0.015 rad.
+#: closer, the residual test scaled by that radius says nothing (seed 0 stream 6 at s = 1,
+#: rho0 + rho1 = L1 + L2 + 3e-17: a "minimum" 2e-8 rad from the crossing, radius 3e-8).
 KKT_DEFINED = 1e-8
 #: Absolute tolerance (rad) of a flow leg's integration (the rest point itself is then
 #: certified by Newton, so this only has to keep the flow in its basin).
@@ -819,10 +817,7 @@ def _through_change_point(system, y, s, push_offs):
     crossing, states = found
     leaving = [x for x in states if float(system.velocity(x, s) @ (x - crossing)) > 0]
     if not leaving:
-        # every half-branch climbs from the crossing: the mechanism rests on it (where a
-        # module passes its linkage limit at the very s of its crossing, test_neck_linkage_
-        # limits; Newton does not count it, the chords do not fix it to KKT_DEFINED)
-        return Rest(crossing)
+        raise NoRest(f'the flow rests on a change point at s={s!r} (not certified)')
     rates = [descent_rate(system, crossing, x, s) for x in leaving]
     landings = [flow_to_rest(system, x, s, push_offs) for x in leaving]
     best = landings[int(np.argmax(rates))]

@@ -455,11 +455,36 @@ class NeckSystem:
             if not np.all(np.isfinite(step)) or np.max(np.abs(step[:m])) > 0.5:
                 return z[:m], False
             z = z - step
-            if np.max(np.abs(step[:m])) < 1e-13 + rounding_radius(self, z[:m], s):
+            undefined = self.chord_rounding_radius(z[:m], s)
+            if np.max(np.abs(step[:m])) < 1e-13 + rounding_radius(self, z[:m], s) + undefined:
                 f, _ = self._kkt(z, s)
-                return z[:m], bool(np.max(np.abs(f[:m])) <= 1e-10 * scale
-                                   and np.max(np.abs(f[m:]), initial=0.0) <= 1e-12)
+                # a point within the chords' rounding radius of the KKT point has a residual
+                # up to |W| times that radius: next to a flat crossing (the N = 3 neck's
+                # module 0 4e-7 rad from it, mu ~ 7.5e6 N, |W| ~ 3e4 J/rad^2, radius 2e-9
+                # rad) Newton cycles with a residual ~1e-7, far above 1e-10 of the scale
+                slack = float(np.linalg.norm(w, 2)) * undefined
+                if np.max(np.abs(f[:m])) <= 1e-10 * scale + slack \
+                        and np.max(np.abs(f[m:]), initial=0.0) <= 1e-12:
+                    return z[:m], True
+                # (else iterate on: with a large radius the stop may come before the residual
+                # is down, where the plain threshold had gone on: seed 0 stream 9's start,
+                # module 0 3e-8 rad from its crossing, radius 8e-8)
         return z[:m], False
+
+    def chord_rounding_radius(self, theta, s):
+        """How far (rad) the chord constraints fix a point at all: their rounding error
+        (~1e-16 of a length) over the constraint Jacobian's smallest singular value.
+        Next to a module's flat crossing that value is tiny (its chord's gradient in its
+        own angles ~0) and Newton's steps stall at this level, above rounding_radius's:
+        2.7e-13 rad 3e-4 rad from the crossing (config/neck.yaml, bench_round_commands
+        seed 0 stream 8, joint_commands {0: 0.13, 1: 0.12, 2: 0.15}), so every Newton
+        solve on the continued minimum 'failed' and the reference reported a false fold
+        at s = 1 - 2.4e-7 (the minimum goes on, stable, to the command's end)."""
+        jac = self.constraint_jacobian(theta, s)
+        if jac.shape[0] == 0:
+            return 0.0
+        low = float(np.linalg.svd(jac, compute_uv=False)[-1])
+        return 1e-15 * float(np.max(self.values(s)[:, 1:3])) / max(low, 1e-300)
 
     def reduced(self, theta, s):
         """(reduced Hessian, null-space basis Z) at a feasible theta."""
@@ -579,14 +604,37 @@ class NeckSystem:
         return crossing, states
 
     def energy_seen_from(self, star, theta, s):
-        """The Lagrangian U + mu* . c at theta, mu* the multipliers of the constrained
-        minimum star (equal to U there): the energy to compare with star's.  U alone
+        """The energy at theta put back on the constraints at s (the shortest way: min-norm
+        Gauss-Newton steps), to compare with the constrained minimum star's.  U alone
         moves to first order off the constraint set (the chord forces): a state rested
         at a nearby s lies ~1e-7 off it after a 1e-7 step in s, its U then differs by
         ~mu 1e-7 (3.7e-6 J next to the N = 3 chord ramp's fold), more than the minimum's
-        own energy drop."""
+        own energy drop.  The Lagrangian U + mu* . c at theta (mu* star's multipliers)
+        removes that first-order term but not the second-order one, mu* c'' d^2 / 2 over
+        the distance d off the constraints: next to a module's flat crossing mu* is huge
+        (the chord's gradient ~0) and c'' indefinite, and the Lagrangian put y_a 1.3e-4 J
+        below the minimum it continues to (config/neck.yaml, bench_round_commands seed 0
+        stream 7, mu* ~ -6000 N: the bisection then lost the fold at s = 0.5 + 2.2e-10).
+        Put back on the constraints, U is compared where star's is (the Lagrangian term
+        stays for what the projection leaves, ~rounding)."""
+        theta = self.projected(theta, s)
         mu = self.multipliers(star, s)
         return self.energy(theta, s) + float(mu @ self.constraints(theta, s))
+
+    def projected(self, theta, s, steps=8):
+        """theta moved onto the chord constraints at s by min-norm Gauss-Newton steps
+        (theta itself if they do not converge: the caller's comparison is then first-order)."""
+        theta = np.array(theta, dtype=float)
+        tol = 1e-15 * float(np.max(self.values(s)[:, 1:3]))
+        y = theta
+        for _ in range(steps):
+            c = self.constraints(y, s)
+            if c.size == 0 or np.max(np.abs(c)) <= tol:
+                return y
+            y = y - np.linalg.lstsq(self.constraint_jacobian(y, s), c, rcond=None)[0]
+        c = self.constraints(y, s)
+        return y if np.max(np.abs(c)) <= 1e3 * tol and angle_distance(y, theta) < CLOSE_DISTANCE \
+            else theta
 
     def is_stable_equilibrium(self, theta, s, tol=1e-8):
         theta = np.asarray(theta, dtype=float).ravel()
@@ -868,8 +916,13 @@ def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
             s, y, slope, ds = jump.s_after, jump.landing, None, FIRST_STEP
             continue
         motion = angle_distance(rest.state, y)
+        # (with no slope yet, as right after a bisection found the branch going on, a
+        # step of MIN_STEP that moves more than CLOSE_DISTANCE is looked at too: seed 0
+        # stream 6's module 0 reached its flat crossing at s = 1 and the last step, 1.9e-9
+        # long, took the 0.015 rad snap off it for the branch's own motion)
         suspicious = motion > MAX_STEP_MOTION or (
-            slope is not None and motion > 3.0 * slope * (s_new - s) + 1e-6)
+            slope is not None and motion > 3.0 * slope * (s_new - s) + 1e-6) or (
+            slope is None and s_new - s <= MIN_STEP and motion > CLOSE_DISTANCE)
         if suspicious and s_new - s > MIN_STEP:
             ds = 0.25 * (s_new - s)
             continue
@@ -1002,10 +1055,14 @@ def _continues(system, y_a, s_b, landing):
     """Whether ``landing`` is the minimum y_a continues to at s_b: Newton from y_a ends on
     a stable point that is the landing (modulo 2 pi).  Next to a fold the branch moves
     like sqrt(s* - s), ~1e-5 rad over a bisection bracket, more than any fixed
-    "same state" distance that still tells a small jump from no jump."""
+    "same state" distance that still tells a small jump from no jump.  But only that far
+    (CLOSE_DISTANCE): Newton's own steps are not a path of rest points, and where the
+    branch ends next to a module's flat crossing Newton from y_a went 0.0475 rad in one
+    solve to the minimum the mechanism jumps to (seed 0 stream 7, see energy_seen_from)."""
     star, ok = system.critical_point(y_a, s_b)
     return bool(ok and system.stability(star, s_b)[0][0] > 0
-                and angle_distance(star, landing) <= 1e-9)
+                and angle_distance(star, landing) <= 1e-9
+                and angle_distance(star, y_a) <= CLOSE_DISTANCE)
 
 
 def _nearby_minimum(system, y_a, s_m, y_b):

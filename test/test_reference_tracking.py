@@ -762,3 +762,68 @@ def test_perfect_neck_against_the_reference(n, ramp):
         sides = [np.ravel(mine.to_theta), np.ravel(np.asarray(mine.to_theta)[:, ::-1])]
         assert min(angle_distance(x, theirs.landing) for x in sides) <= LANDING_TOL, \
             (mine.to_theta, theirs.landing)
+
+
+# -- a fold next to a module's flat crossing (config/neck.yaml, issue 10) -------------------------
+
+def neck_yaml(rhos, head=-1.0):
+    """config/neck.yaml's three modules (rods 0.12 m, springs 300 N/m, 20 g rods) at
+    actuator lengths ``rhos``, ``head`` (N, vertical) at m2's A3 and A4."""
+    base = ModuleParams(rho=0.1, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02)
+    return Stack((base.with_(rho=rhos[0]), base.with_(rho=rhos[1]),
+                  base.with_(rho=rhos[2], f3y=head, f4y=head)))
+
+
+def test_neck_fold_next_to_a_flat_crossing_is_a_jump():
+    """bench_round_commands seed 0 stream 7, ``joint_commands {0: 0.11, 1: 0.15, 2: 0.06}``
+    (rhos 0.10, 0.15, 0.12 -> 0.11, 0.15, 0.06).  At s = 0.5 module 1 reaches its flat
+    crossing (rho1 + rho2 = L1 + L2); its minimum lies 3e-4 rad from it (chord forces
+    ~ -6000 N), goes on past s = 0.5 and folds at s = 0.5 + 2.2e-10 (lambda_min 4.07 at
+    0.5 + 1e-10, 1.28 at 0.5 + 2.15e-10, lambda^2 linear in s: a fold); the mechanism then
+    snaps 0.0475 rad (module 1 to (-0.006, -0.048)), releasing 6.3e-3 J.  The reference
+    used to pass it without a jump: its bisection rejected every continued minimum on the
+    Lagrangian's energy (1.3e-4 J too low off the constraints with such chord forces), and
+    Newton, which went 0.0475 rad in one solve to the landing, was taken for continuity."""
+    start, end = neck_yaml((0.10, 0.15, 0.12)), neck_yaml((0.11, 0.15, 0.06))
+    theta = np.array([[-0.36937994803409896, 0.3309629454806235],
+                      [-0.4311351674132272, 0.4119042051110087],
+                      [-0.09864009632639534, -0.10170412018340869]])
+    got, ref = compare_neck(start, end, theta)
+    (mine,), (theirs,) = got.jumps, ref.jumps
+    assert mine.kind == theirs.kind == 'fold'
+    assert theirs.s_before - 1e-10 <= mine.s <= theirs.s_after + 1e-10, (mine.s, theirs)
+    assert 0.5 < mine.s < 0.5 + 1e-9
+    system = NeckSystem(start.modules, end.modules)
+    assert angle_distance(theirs.landing, theirs.departure) > 0.04
+    assert system.energy(theirs.departure, theirs.s_after) \
+        - system.energy(theirs.landing, theirs.s_after) > 5e-3
+    # the fold itself, by the reference's Newton along the branch: a minimum up to
+    # 0.5 + 2.15e-10 (lambda_min falling), none next to it at 0.5 + 2.3e-10
+    y = theirs.departure
+    for s in (0.5 + 1e-10, 0.5 + 2e-10, 0.5 + 2.15e-10):
+        y, ok = system.critical_point(y, s)
+        assert ok and system.stability(y, s)[0][0] > 0, s
+    assert system.stability(y, 0.5 + 2.15e-10)[0][0] < 0.5 * system.stability(
+        system.critical_point(y, 0.5 + 1e-10)[0], 0.5 + 1e-10)[0][0]
+    star, ok = system.critical_point(y, 0.5 + 2.3e-10)
+    assert not (ok and system.stability(star, 0.5 + 2.3e-10)[0][0] > 0
+                and angle_distance(star, y) < 1e-3)
+
+
+def test_neck_minimum_reaching_a_flat_crossing_at_the_command_end_is_no_jump():
+    """bench_round_commands seed 0 stream 8, ``joint_commands {0: 0.13, 1: 0.12, 2: 0.15}``
+    under a 2 N head (rate-limited: rhos 0.06, 0.15, 0.12 -> 0.1125, 0.1275, 0.1425, the
+    sum rho0 + rho1 1.3e-14 short of L1 + L2): module 0's minimum closes in on its flat
+    crossing like sqrt(1 - s), stable (lambda_min 1.72) to the end, where it lies 4.7e-7
+    rad from it with a chord force of 7.5e6 N.  The reference reported a fold at
+    s = 1 - 2.4e-7 landing 0.082 rad away: its Newton never counted as converged there
+    (steps stalled at the chords' rounding, 2.7e-13 rad, above its 1e-13 threshold; at
+    s = 1 the residual cycled at 1e-7, |W| times that rounding radius)."""
+    start = neck_yaml((0.06, 0.15, 0.12), head=-2.0)
+    end = neck_yaml((0.11249999999997722, 0.12750000000000977, 0.14249999999999022), head=-2.0)
+    theta = np.array([[0.5404188955165405, 0.4711683958119731],
+                      [-0.4509635541558122, 0.3933154689125854],
+                      [-0.3196380838520424, -0.33518712650429117]])
+    got, ref = compare_neck(start, end, theta)
+    assert got.jumps == () and ref.jumps == []
+    assert np.max(np.abs(ref.final[:2])) < 1e-6

@@ -839,7 +839,7 @@ class _Tracker:
             return None
         kind = FOLD if self.orthogonality(y, s, psi) > self.settings.branch_tol else BRANCH_POINT
         try:
-            # (from an unresolved start the fold may lie behind it: where a landing just
+            # (from an unresolved state the fold may lie behind it: where a landing just
             # past s finds only the fold's ghost, it is retried up to the command's end)
             return self.land(kind, s, y, s_end, reach=s_end - s if unresolved else 1e-3)
         except TrackingError:

@@ -641,3 +641,8 @@ def test_a_command_ending_on_a_flat_crossing_the_mechanism_snaps_from_reports_th
     assert ref.energy(crossing, 1.0) - ref.energy(landing, 1.0) > 1e-4    # ... downhill
     final = np.ravel(mine.final.theta)
     assert angle_distance(final, landing) < 1e-9
+    # and the reference's quasi-static path ends with that jump (it ended on the crossing)
+    path = quasi_static_path(NeckSystem(start.modules, end.modules), np.ravel(held.theta))
+    assert [(j.kind, j.s, j.ambiguous) for j in path.jumps] == [('fold', 1.0, True)]
+    assert min(angle_distance(final, path.final),
+               angle_distance(mirrored(final), path.final)) < 1e-6, (final, path.final)

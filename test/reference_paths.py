@@ -1113,14 +1113,20 @@ def _nearby_minimum(system, y_a, s_m, y_b):
         else None
 
 
+def critical_solve(system, y, s):
+    """{grad U = 0, det H = 0} solved from (y, s): scipy's root result, x = (state, [chord
+    multipliers,] s)."""
+    if isinstance(system, NeckSystem):
+        z0 = np.concatenate([y, system.multipliers(y, s), [s]])
+    else:
+        z0 = np.concatenate([y, [s]])
+    with np.errstate(all='ignore'):
+        return root(system.critical_residual, z0, method='hybr', options={'xtol': 1e-14})
+
+
 def critical_point_in(system, y_a, s_a, s_b, slack=1e-10):
     """Solve {grad U = 0, det H = 0} from the bracket; (s, solved) if it lands in it."""
-    if isinstance(system, NeckSystem):
-        z0 = np.concatenate([y_a, system.multipliers(y_a, s_a), [s_a]])
-    else:
-        z0 = np.concatenate([y_a, [s_a]])
-    with np.errstate(all='ignore'):
-        sol = root(system.critical_residual, z0, method='hybr', options={'xtol': 1e-14})
+    sol = critical_solve(system, y_a, s_a)
     s = float(sol.x[-1])
     if sol.success and s_a - slack <= s <= s_b + slack:
         return s, True

@@ -11,14 +11,13 @@ limit (the state closes in on the flat state like a square root).
 """
 import numpy as np
 import pytest
-from scipy.optimize import root
 
 from tensegrity_ros.core import ModuleParams
 from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 from tensegrity_ros.core.simulator import Simulator
 
-from reference_paths import (ModuleSystem, NeckSystem, angle_distance, flow_to_rest,
-                             quasi_static_path)
+from reference_paths import (ModuleSystem, NeckSystem, angle_distance, critical_solve,
+                             flow_to_rest, quasi_static_path)
 
 
 def paper_neck(n, rho=0.75):
@@ -592,8 +591,7 @@ def test_a_step_ending_unresolved_next_to_a_fold_jumps_there():
     assert jump.kind == 'fold'
     system = NeckSystem(start.modules, end.modules)
     theta = np.ravel(jump.from_theta)
-    z0 = np.concatenate([theta, system.multipliers(theta, jump.s), [jump.s]])
-    fold = root(system.critical_residual, z0, method='hybr', options={'xtol': 1e-14}).x
+    fold = critical_solve(system, theta, jump.s).x
     assert np.max(np.abs(system.critical_residual(fold))) < 1e-10
     assert abs(fold[-1] - jump.s) < 1e-9 and angle_distance(fold[:6], theta) < 1e-3
     rest = flow_to_rest(system, theta, jump.s + 1e-9)      # (just past: the flow at the

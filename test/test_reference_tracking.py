@@ -96,15 +96,14 @@ import os
 
 import numpy as np
 import pytest
-from scipy.optimize import root
 
 from tensegrity_ros.core import ModuleParams, settle, track_module
 from tensegrity_ros.core.continuation import TrackingError
 from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 from tensegrity_ros.core.supported_range import LOAD_RATIO
 
-from reference_paths import (FIELDS, ModuleSystem, NeckSystem, angle_distance, flow_to_rest,
-                             other_sides, quasi_static_path, settle_reference)
+from reference_paths import (FIELDS, ModuleSystem, NeckSystem, angle_distance, critical_solve,
+                             flow_to_rest, other_sides, quasi_static_path, settle_reference)
 
 #: A reported jump and the reference's must be this close in s.
 LOCATION_TOL = 1e-7
@@ -591,8 +590,7 @@ def test_a_neck_command_from_a_state_left_at_a_fold_jumps_at_its_start():
     system = NeckSystem(start.modules, end.modules)
     y = np.array(FOLD_LEFT_STATE)
     theta = np.ravel(track_stack(start, start, y).final.theta)       # (the state is held)
-    z0 = np.concatenate([theta, system.multipliers(theta, 0.0), [0.0]])
-    fold = root(system.critical_residual, z0, method='hybr', options={'xtol': 1e-14}).x
+    fold = critical_solve(system, theta, 0.0).x
     assert np.max(np.abs(system.critical_residual(fold))) < 1e-10
     assert abs(fold[-1]) < 1e-8 and angle_distance(fold[:6], theta) < 1e-4
     landings = []

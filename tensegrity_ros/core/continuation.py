@@ -777,8 +777,7 @@ class _Tracker:
         moved along each state component and projected on the constraints.  It is the
         mechanism going on (no jump) only if it closes in on the state as the offset
         shrinks 100-fold (to 0.3 of its distance or less, as a square root does)."""
-        check = getattr(self.problem, 'linkage_limit', None)
-        if check is None or s >= s_end or not check(y, s):
+        if s >= s_end or not self.linkage_limit(y, s):
             return None
         if s_end - s < self.settings.linkage_offset:
             # the limit lies at the command's end within rounding: the closing-in test
@@ -1515,8 +1514,7 @@ class _Tracker:
         reduced Hessian's margin test does not apply.  (config/neck.yaml, bench_round_
         commands seed 0, stream 10, head load -> -10 N: it rested with module 0 flat,
         2e-7 rad, where the reference's flow goes on to 0.26 rad.)"""
-        check = getattr(self.problem, 'linkage_limit', None)
-        return bool(rigid and check is not None and check(y, s))
+        return bool(rigid and self.linkage_limit(y, s))
 
     def downhill(self, a, b, s, samples=16):
         """Whether the energy falls all the way along the straight line from ``a`` to ``b``

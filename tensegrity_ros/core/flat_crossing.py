@@ -21,6 +21,13 @@ import numpy as np
 #: less than this (times l_ref): otherwise the chord's solution set does not cross itself
 #: there (it turns back, a linkage limit) and the flow has no choice to make.
 CROSSING_CHORD_TOL = 1e-9
+#: The rounding error of a chord constraint (times l_ref): its end nodes are sums of
+#: the rod vectors below (each rounded to ~1e-16 of l_ref), and the difference of the
+#: squares in (|chord|^2 - l^2) / (2 l_ref) loses as much again: ~1e-15 l_ref, a few
+#: units in the last place of L1 + L2 (config/neck.yaml: 1.2e-16 m against 2.8e-17 m).
+#: Next to a module's flat crossing Newton's rod-angle updates stall at this over the
+#: chord's gradient (see :func:`rounding`).
+CHORD_ROUNDING = 1e-15
 #: Farthest (rad, max over the module's two rods) a state may be from the crossing it is
 #: said to be at.
 CROSSING_REACH = 0.1
@@ -95,9 +102,10 @@ def _flat_angles(path, y, s, i):
     return angles
 
 
-def crossing_at(path, y, s):
-    """(module index, crossing state, [states out along each half-branch]) if ``y`` is
-    next to a module's flat crossing (within CROSSING_REACH), else None."""
+def _crossing(path, y, s):
+    """(module index, its flat angles, crossing state, eigenpairs of chord i's Hessian
+    there) if ``y`` is next to a module's flat crossing (within CROSSING_REACH), else
+    None."""
     i, _ = flatness(path, y, s)
     if i is None:
         return None
@@ -111,6 +119,33 @@ def crossing_at(path, y, s):
     values, vectors = np.linalg.eigh(_hessian(path, crossing, s, i))
     if values[0] >= 0.0 or values[1] <= 0.0:
         return None
+    return i, flat, crossing, values, vectors
+
+
+def rounding(path, y, s):
+    """(distance, radius) of ``y`` from the flat crossing next to it (rad, the larger of
+    module i's two rod angles measured from their flat angles), or None if ``y`` is at
+    no crossing.  ``radius`` is how far chord i's constraint fixes the module's angles at
+    all: its rounding error (CHORD_ROUNDING l_ref) over its gradient in them.  That
+    gradient is ~|H| distance, so ``y`` is within the radius where the crossing's own
+    chord misses its length by less than ~CHORD_ROUNDING l_ref / 2: there the model does
+    not tell the state from the crossing."""
+    found = _crossing(path, y, s)
+    if found is None:
+        return None
+    i, flat, _, _, _ = found
+    _, gradient = _chord(path, y, s, i)
+    distance = float(np.max(np.abs(y[2 * i:2 * i + 2] - flat)))
+    return distance, CHORD_ROUNDING * path.l_ref / max(float(np.linalg.norm(gradient)), 1e-300)
+
+
+def crossing_at(path, y, s):
+    """(module index, crossing state, [states out along each half-branch]) if ``y`` is
+    next to a module's flat crossing (within CROSSING_REACH), else None."""
+    found = _crossing(path, y, s)
+    if found is None:
+        return None
+    i, flat, crossing, values, vectors = found
     states = []
     for sign in (1.0, -1.0):
         # the two lines where x^T H x = l0 l1 - l1 l0 = 0 (H's null cone)

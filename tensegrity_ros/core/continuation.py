@@ -782,9 +782,9 @@ class _Tracker:
         if s_end - s < self.settings.linkage_offset:
             # the limit lies at the command's end within rounding: the closing-in test
             # below would compare two states before it (both on the branch coming in)
-            snap = self.snap_at_end_crossing(y, s_end)
-            if snap is not None:
-                return snap
+            ended = self.end_next_to_crossing(y, s_end)
+            if ended is not None:
+                return ended
         offset = min(self.settings.linkage_offset, s_end - s)
         near = self.nearest_minimum(y, s + offset)
         if near is not None:
@@ -807,10 +807,84 @@ class _Tracker:
             return None
         return near, s + offset, None
 
+    def end_next_to_crossing(self, y, s_end):
+        """The command's end where the branch coming in (``y``, within ``linkage_offset``
+        of s_end) ends next to a module's flat crossing: (minimum, s_end, None) where a
+        verified minimum off the crossing ends it (no jump), (landing, s_end, fold event)
+        where the state at s_end is at the crossing and the mechanism snaps from it, or
+        ``None`` where neither is shown (the closing-in test decides).
+
+        Which it is, Newton at s_end from ``y`` tells (:meth:`newton_next_to_crossing`):
+        the branch approaches the crossing like the square root of the distance in s, and
+        at s_end it either reaches it to rounding (the command ends where rho(i) +
+        rho(i+1) = L1 + L2 to within the chord's rounding: there the model does not tell
+        the state from the crossing) or stops short of it, on a minimum the chord still
+        resolves (bench_round_commands seed 0, stream 8's joint_commands {0: 0.13, 1: 0.12,
+        2: 0.15}: the sum 5.6e-16 m short, the minimum 7.8e-8 rad from the crossing,
+        8 rounding radii, lambda_min 100; snapping there reported a jump of 0.08 rad the
+        reference does not make)."""
+        found = self.newton_next_to_crossing(y, s_end)
+        if found is None:
+            return None
+        where, state = found
+        if where == 'off':
+            return state, s_end, None
+        return self.snap_at_end_crossing(y, s_end)
+
+    def newton_next_to_crossing(self, y, s):
+        """Where Newton at s from ``y`` goes next to a module's flat crossing (the
+        problem's optional ``crossing_rounding(y, s)``: (distance, rounding radius) of a
+        state from the crossing next to it): ('at', state) where an iterate comes within
+        the rounding radius of the crossing, ('off', minimum) where the updates of the
+        moving components stall below that radius outside it on a verified minimum
+        within SNAP_DISTANCE of ``y``, else ``None``.
+
+        Next to a crossing the chord's gradient is ~|H| distance, so Newton's steps there
+        are fixed only to the chord's rounding over it: they stall at that radius (the
+        multipliers, ~1e7 N, cycling by a few per cent), and the residual stays up to
+        |W| times it (1.7e-3 where the tracker's own tolerance is 7e-8; as the
+        reference's critical_point allows).  Approaching the crossing itself, whose
+        solution Newton converges to only linearly (the equations are singular there),
+        the iterates halve their distance to it until they are within the radius
+        (bench_round_commands seed 0, streams 6 and 8: within it after 2 and 4 updates,
+        at 0.86 and 0.77 of it)."""
+        rounding = getattr(self.problem, 'crossing_rounding', None)
+        if rounding is None:
+            return None
+        problem, start = self.problem, y
+        moving = (np.ones(problem.size, dtype=bool) if self.weights is None
+                  else self.weights > 0.0)
+        tol = self.settings.residual_tol * self.scale
+        f = problem.residual(y, s)
+        for _ in range(self.settings.newton_iterations):
+            try:
+                jacobian = problem.jacobian(y, s)
+                delta = _solve(jacobian, f)
+            except np.linalg.LinAlgError:
+                return None
+            if not np.all(np.isfinite(delta)):
+                return None
+            y = y - delta
+            f = problem.residual(y, s)
+            found = rounding(y, s)
+            if found is None:
+                return None
+            distance, radius = found
+            if distance <= radius:
+                return 'at', y
+            if _inf_norm(delta[moving]) > radius:
+                continue
+            slack = float(np.linalg.norm(jacobian[np.ix_(moving, moving)], 2)) * radius
+            if (_inf_norm(f) <= tol + slack and self.separation(y, start) <= SNAP_DISTANCE
+                    and self.definite(self.eigenvalues(y, s))):
+                return 'off', y
+            return None
+        return None
+
     def snap_at_end_crossing(self, y, s_end):
         """The jump at the command's end where the branch coming in ends on a module's
-        flat crossing there: (landing, s_end, fold event), or ``None`` where the state at
-        s_end is at no crossing, no half-branch leads down from it, or the mechanism
+        flat crossing there (to rounding: :meth:`end_next_to_crossing`): (landing, s_end,
+        fold event), or ``None`` where no half-branch leads down from it, or the mechanism
         comes to rest within SNAP_DISTANCE of it (it goes on continuously).
 
         The branch approaches the crossing like the square root of the distance in s

@@ -123,20 +123,30 @@ def _crossing(path, y, s):
 
 
 def rounding(path, y, s):
-    """(distance, radius) of ``y`` from the flat crossing next to it (rad, the larger of
-    module i's two rod angles measured from their flat angles), or None if ``y`` is at
-    no crossing.  ``radius`` is how far chord i's constraint fixes the module's angles at
-    all: its rounding error (CHORD_ROUNDING l_ref) over its gradient in them.  That
-    gradient is ~|H| distance, so ``y`` is within the radius where the crossing's own
-    chord misses its length by less than ~CHORD_ROUNDING l_ref / 2: there the model does
-    not tell the state from the crossing."""
+    """(distance, radius, exact) of ``y`` and the flat crossing next to it, or None if
+    ``y`` is at no crossing.  ``distance``: rad, the larger of module i's two rod angles
+    measured from their flat angles.  ``radius``: how far chord i's constraint fixes the
+    module's angles at all, its rounding error (CHORD_ROUNDING l_ref) over its gradient
+    in them.  ``exact``: whether the crossing itself is one to rounding, its chord
+    missing its length by at most half that error.
+
+    Near the crossing the chord's constraint is c0 + x^T H x / 2 (x: the module's angles
+    from flat; c0 what the chord misses at the flat configuration), so its gradient is
+    ~|H| distance and the radius ~CHORD_ROUNDING l_ref / (|H| distance).  Where c0 is
+    not 0, the chord's solution set does not cross itself: its two arms pass the flat
+    configuration at sqrt(2 |c0| / |H|), within the radius there exactly where
+    |c0| <= CHORD_ROUNDING l_ref / 2.  Then no state the model resolves tells the arms
+    apart (the crossing is exact); otherwise a state within the radius is one Newton
+    passes on its way (and the arms' minima lie outside it)."""
     found = _crossing(path, y, s)
     if found is None:
         return None
-    i, flat, _, _, _ = found
+    i, flat, crossing, _, _ = found
     _, gradient = _chord(path, y, s, i)
     distance = float(np.max(np.abs(y[2 * i:2 * i + 2] - flat)))
-    return distance, CHORD_ROUNDING * path.l_ref / max(float(np.linalg.norm(gradient)), 1e-300)
+    error = CHORD_ROUNDING * path.l_ref
+    return (distance, error / max(float(np.linalg.norm(gradient)), 1e-300),
+            abs(_chord(path, crossing, s, i)[0]) <= 0.5 * error)
 
 
 def crossing_at(path, y, s):

@@ -872,9 +872,10 @@ class StackPath:
         return _flat_crossing.ways_out(self, y, s)
 
     def crossing_rounding(self, y, s):
-        """(distance, radius) of ``y`` from a module's flat crossing next to it and the
-        chords' rounding radius there, both in rad (see :func:`.flat_crossing.rounding`),
-        or None if there is none."""
+        """(distance, radius, exact) of ``y`` from a module's flat crossing next to it,
+        the chords' rounding radius there (both in rad) and whether the crossing is
+        exact to rounding (see :func:`.flat_crossing.rounding`), or None if there is
+        none."""
         return _flat_crossing.rounding(self, y, s)
 
     def _unresolved(self, y, s, smallest):

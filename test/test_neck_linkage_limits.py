@@ -596,3 +596,51 @@ def test_a_step_ending_unresolved_next_to_a_fold_jumps_there():
     assert abs(fold[-1] - jump.s) < 1e-9 and angle_distance(fold[:6], theta) < 1e-3
     rest = flow_to_rest(system, theta, jump.s + 1e-9)      # (just past: the flow at the
     assert angle_distance(rest.state, np.ravel(jump.to_theta)) < 1e-6   # fold itself stalls)
+
+
+def test_a_command_ending_on_a_flat_crossing_the_mechanism_snaps_from_reports_the_jump():
+    """config/neck.yaml as bench_round_commands seed 0, stream 6 left it, commanded to
+    rho = (0.10, 0.14, 0.05): at s = 1 module 0 is exactly at its flat crossing (rho0 +
+    rho1 = L1 + L2 to 3e-17 m), approached like sqrt(1 - s).  Two half-branches leave the
+    crossing downhill (the reference's change_point_branches and its own energy), and the
+    mechanism released there comes to rest (the reference's flow) 0.015 rad away, 4e-4 J
+    lower: a jump at s = 1.  The tracker made that move silently (through_linkage_limit's
+    closing-in test, its offset capped by the command's end, compared two states before
+    the crossing); it now reports it, landing where the reference's flow from a leaving
+    half-branch rests, ambiguous as the other one rests on the mirror image."""
+    start = neck_yaml((0.09, 0.12749999999999545, 0.09))
+    end = neck_yaml((0.10, 0.14, 0.05))
+    theta = np.array([[0.43646902873496424, 0.43646902873496407],
+                      [0.43646902873496424, 0.4364690287349643],
+                      [-0.7250552169156804, -0.7250552169156809]])
+    held = track_stack(start, start, theta).final
+    assert held.stable
+    mine = track_stack(start, end, held)
+    assert mine.status == 'ok', mine.message
+    assert [j.kind for j in mine.jumps] == ['fold']
+    jump = mine.jumps[0]
+    assert jump.s == 1.0 and jump.ambiguous
+    # independent evidence: the reference's crossing next to where the jump starts, its
+    # leaving half-branches, their energies and where its flow from them rests
+    ref = NeckSystem(end.modules)
+    found = ref.change_point_branches(np.ravel(jump.from_theta), 1.0)
+    assert found is not None
+    crossing, states = found
+    assert angle_distance(crossing, np.ravel(jump.from_theta)) < 1e-6
+    leaving = [x for x in states if float(ref.velocity(x, 1.0) @ (x - crossing)) > 0]
+    assert len(leaving) == 2
+    assert all(ref.energy(x, 1.0) < ref.energy(crossing, 1.0) for x in leaving)
+    rests = [flow_to_rest(ref, x, 1.0).state for x in leaving]
+    landing = np.ravel(jump.to_theta)
+    assert min(min(angle_distance(landing, r), angle_distance(mirrored(landing), r))
+               for r in rests) < 1e-6, (landing, rests)
+    assert angle_distance(rests[0], rests[1]) > 1e-2           # elsewhere: ambiguous
+    assert angle_distance(landing, crossing) > 1e-2            # a finite move ...
+    assert ref.energy(crossing, 1.0) - ref.energy(landing, 1.0) > 1e-4    # ... downhill
+    final = np.ravel(mine.final.theta)
+    assert angle_distance(final, landing) < 1e-9
+    # and the reference's quasi-static path ends with that jump (it ended on the crossing)
+    path = quasi_static_path(NeckSystem(start.modules, end.modules), np.ravel(held.theta))
+    assert [(j.kind, j.s, j.ambiguous) for j in path.jumps] == [('fold', 1.0, True)]
+    assert min(angle_distance(final, path.final),
+               angle_distance(mirrored(final), path.final)) < 1e-6, (final, path.final)

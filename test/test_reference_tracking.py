@@ -825,3 +825,55 @@ def test_neck_minimum_reaching_a_flat_crossing_at_the_command_end_is_no_jump():
     got, ref = compare_neck(start, end, theta)
     assert got.jumps == () and ref.jumps == []
     assert np.max(np.abs(ref.final[:2])) < 1e-6
+
+
+def test_neck_minimum_ending_resolved_next_to_a_flat_crossing_is_no_jump():
+    """The same command as the stream ran on after h13's change (its earlier commands
+    left the rhos different in the last bits): rho0 + rho1 5.6e-16 m short of L1 + L2 at
+    s = 1.  The minimum closes in on module 0's flat crossing and ends, stable, 7.8e-8
+    rad from it: beyond the chords' rounding radius (1e-8 rad; the reference's Newton
+    resolves it), so nothing snaps.  The tracker reported a fold at s = 1 landing 0.082
+    rad away (0.0136 J released), as if the command ended on the crossing itself: a
+    false jump."""
+    start = neck_yaml((0.06, 0.15, 0.12), head=-2.0)
+    end = neck_yaml((0.11249999999999902, 0.12750000000000042, 0.14249999999999957), head=-2.0)
+    theta = np.array([[0.5404188955165407, 0.4711683958119731],
+                      [-0.4509635541558123, 0.39331546891258545],
+                      [-0.3196380838520424, -0.3351871265042921]])
+    got, ref = compare_neck(start, end, theta)
+    assert got.jumps == () and ref.jumps == []
+    assert angle_distance(np.ravel(got.final.theta), ref.final) < 1e-6
+    # independent evidence: the reference's end is a stable minimum off its crossing by
+    # more than its own rounding radius (and close to it: the minimum did reach it)
+    system = NeckSystem(start.modules, end.modules)
+    crossing, _ = system.change_point_branches(ref.final, 1.0)
+    off = angle_distance(crossing, ref.final)
+    assert system.chord_rounding_radius(ref.final, 1.0) < off < 1e-6, off
+    assert system.stability(ref.final, 1.0)[0][0] > 0
+
+
+def test_neck_command_ending_on_a_flat_crossing_snaps():
+    """bench_round_commands seed 0 stream 8, ``joint_commands {0: 0.09, 1: 0.12, 2: 0.12}``
+    under a 0.5 N head (rhos 0.11, 0.085, 0.08 -> 0.09, 0.12, 0.12): after a fold at
+    s = 0.8173 module 1 ends the command on its flat crossing (rho1 + rho2 = L1 + L2 to
+    1e-17 m), where two half-branches lead down: the mechanism snaps at s = 1 (0.065 in the
+    tracker's state norm, ambiguous: the other half-branch lands on the mirror image).
+    The tracker used to move there silently (as for stream 6, test_neck_linkage_limits);
+    it must still snap where Newton at s = 1 comes within the chords' rounding of the
+    crossing (it does after 4 updates), unlike the command above."""
+    start = neck_yaml((0.11, 0.085, 0.08), head=-0.5)
+    end = neck_yaml((0.09, 0.12, 0.12), head=-0.5)
+    theta = np.array([[0.6223684885550205, 0.6223684885550205],
+                      [0.8127555613686608, 0.8127555613686603],
+                      [0.8308470499854573, 0.8308470499854576]])
+    got, ref = compare_neck(start, end, theta)
+    assert [(j.kind, j.s == 1.0) for j in got.jumps] == [('fold', False), ('fold', True)]
+    assert got.jumps[1].ambiguous
+    assert [(j.kind, j.s) for j in ref.jumps][1] == ('fold', 1.0)
+    # the reference's jump at s = 1 starts on its crossing to within its rounding radius
+    system = NeckSystem(start.modules, end.modules)
+    departure = ref.jumps[1].departure
+    crossing, _ = system.change_point_branches(departure, 1.0)
+    assert angle_distance(crossing, departure) <= max(system.chord_rounding_radius(departure, 1.0),
+                                                      1e-8)
+    assert angle_distance(ref.jumps[1].landing, departure) > 1e-2

@@ -79,6 +79,11 @@ UNRESOLVED_UPDATE = 1e-9
 #: chord gradient (over l_ref) is below this (see ``_Tracker.rigid_flow_to_rest``); it
 #: goes on through at most MAX_CROSSING_LEGS such stops per flow.
 CROSSING_APPROACH = 1e-3
+#: Where a command ends on a module's flat crossing, a mechanism released there that
+#: comes to rest farther than this (weighted state norm) has jumped (see
+#: ``_Tracker.snap_at_end_crossing``): ten times the passage radius; a minimum going on
+#: through the crossing stays ~sqrt(the step in s) of it, ~1e-6 at the last steps.
+SNAP_DISTANCE = 1e-3
 MAX_CROSSING_LEGS = 16
 
 
@@ -774,6 +779,12 @@ class _Tracker:
         shrinks 100-fold (to 0.3 of its distance or less, as a square root does)."""
         if s >= s_end or not self.linkage_limit(y, s):
             return None
+        if s_end - s < self.settings.linkage_offset:
+            # the limit lies at the command's end within rounding: the closing-in test
+            # below would compare two states before it (both on the branch coming in)
+            ended = self.end_next_to_crossing(y, s_end)
+            if ended is not None:
+                return ended
         offset = min(self.settings.linkage_offset, s_end - s)
         near = self.nearest_minimum(y, s + offset)
         if near is not None:
@@ -795,6 +806,121 @@ class _Tracker:
                 or self.separation(closer, y) > 0.3 * distance + self.settings.same_state_tol):
             return None
         return near, s + offset, None
+
+    def end_next_to_crossing(self, y, s_end):
+        """The command's end where the branch coming in (``y``, within ``linkage_offset``
+        of s_end) ends next to a module's flat crossing: (minimum, s_end, None) where a
+        verified minimum off the crossing ends it (no jump), (landing, s_end, fold event)
+        where the state at s_end is at the crossing and the mechanism snaps from it, or
+        ``None`` where neither is shown (the closing-in test decides).
+
+        Which it is, Newton at s_end from ``y`` tells (:meth:`newton_next_to_crossing`):
+        the branch approaches the crossing like the square root of the distance in s, and
+        at s_end it either reaches it to rounding (the command ends where rho(i) +
+        rho(i+1) = L1 + L2 to within the chord's rounding: there the model does not tell
+        the state from the crossing) or stops short of it, on a minimum the chord still
+        resolves (bench_round_commands seed 0, stream 8's joint_commands {0: 0.13, 1: 0.12,
+        2: 0.15}: the sum 5.6e-16 m short, the minimum 7.8e-8 rad from the crossing,
+        8 rounding radii, lambda_min 100; snapping there reported a jump of 0.08 rad the
+        reference does not make)."""
+        found = self.newton_next_to_crossing(y, s_end)
+        if found is None:
+            return None
+        where, state = found
+        if where == 'off':
+            return state, s_end, None
+        return self.snap_at_end_crossing(y, s_end)
+
+    def newton_next_to_crossing(self, y, s):
+        """Where Newton at s from ``y`` goes next to a module's flat crossing (the
+        problem's optional ``crossing_rounding(y, s)``: (distance, rounding radius,
+        exact) of a state, the crossing next to it and whether that crossing is exact to
+        rounding): ('at', state) where an iterate comes within the rounding radius of an
+        exact crossing, ('off', minimum) where the updates of the moving components
+        stall below that radius outside it on a verified minimum within SNAP_DISTANCE of
+        ``y``, else ``None``.
+
+        Next to a crossing the chord's gradient is ~|H| distance, so Newton's steps there
+        are fixed only to the chord's rounding over it: they stall at that radius (the
+        multipliers, ~1e7 N, cycling by a few per cent), and the residual stays up to
+        |W| times it (1.7e-3 where the tracker's own tolerance is 7e-8; as the
+        reference's critical_point allows).  Approaching the crossing itself, whose
+        solution Newton converges to only linearly (the equations are singular there),
+        the iterates halve their distance to it until they are within the radius
+        (bench_round_commands seed 0, streams 6 and 8: within it after 2 and 4 updates,
+        at 0.86 and 0.77 of it; the crossings miss their chords by 2.9e-17 and 1.4e-17 m,
+        below the 6e-17 m of an exact one).  An iterate within the radius of a crossing
+        that is not exact is only passing (stream 8b's crossing misses by 5.9e-16 m, and
+        its minimum lies 8 radii out: Newton from its incoming state moved at random by
+        1e-7 or 1e-6 rad passed within the radius on its way there from 2 of 16 starts)."""
+        rounding = getattr(self.problem, 'crossing_rounding', None)
+        if rounding is None:
+            return None
+        problem, start = self.problem, y
+        moving = (np.ones(problem.size, dtype=bool) if self.weights is None
+                  else self.weights > 0.0)
+        tol = self.settings.residual_tol * self.scale
+        f = problem.residual(y, s)
+        for _ in range(self.settings.newton_iterations):
+            try:
+                jacobian = problem.jacobian(y, s)
+                delta = _solve(jacobian, f)
+            except np.linalg.LinAlgError:
+                return None
+            if not np.all(np.isfinite(delta)):
+                return None
+            y = y - delta
+            f = problem.residual(y, s)
+            found = rounding(y, s)
+            if found is None:
+                return None
+            distance, radius, exact = found
+            if distance <= radius:
+                if exact:
+                    return 'at', y
+                continue            # passing: the crossing's arms lie apart (see rounding)
+            if _inf_norm(delta[moving]) > radius:
+                continue
+            slack = float(np.linalg.norm(jacobian[np.ix_(moving, moving)], 2)) * radius
+            if (_inf_norm(f) <= tol + slack and self.separation(y, start) <= SNAP_DISTANCE
+                    and self.definite(self.eigenvalues(y, s))):
+                return 'off', y
+            return None
+        return None
+
+    def snap_at_end_crossing(self, y, s_end):
+        """The jump at the command's end where the branch coming in ends on a module's
+        flat crossing there (to rounding: :meth:`end_next_to_crossing`): (landing, s_end,
+        fold event), or ``None`` where no half-branch leads down from it, or the mechanism
+        comes to rest within SNAP_DISTANCE of it (it goes on continuously).
+
+        The branch approaches the crossing like the square root of the distance in s
+        (config/neck.yaml, bench_round_commands seed 0, stream 6: 4.3e-7 rad at 1e-12
+        short of s = 1, where rho0 + rho1 = L1 + L2 to 3e-17 m).  At the crossing two
+        half-branches lead down (0.27 per unit node length), and the mechanism released
+        there comes to rest 0.015 rad away, 4e-4 J lower: a finite move at fixed s with
+        an energy release, a jump.  (It was made silently, as 'just past the limit':
+        :meth:`through_linkage_limit`'s closing-in test, with its offset capped by the
+        command's end, compared two states before the crossing.)  It lands as a landing
+        flow through a crossing does: along the steepest half-branch, ambiguous where
+        another lands elsewhere (there: on the mirror image)."""
+        problem = self.problem
+        if getattr(problem, 'crossing_ways', None) is None:
+            return None
+        at_end = problem.project(y, s_end)
+        self.crossing_alternatives = []
+        ways = problem.crossing_ways(at_end, s_end)
+        if not ways or max(rate for rate, _ in ways) <= 0.0:
+            return None
+        onward = self.through_crossing(at_end, s_end)
+        alternatives = list(self.crossing_alternatives)
+        landing = self.slide(onward, s_end, rigid_first=True)
+        if (landing is None or self.separation(landing, at_end) <= SNAP_DISTANCE
+                or problem.energy(landing, s_end) >= problem.energy(at_end, s_end)):
+            return None
+        ambiguous = self.lands_elsewhere(alternatives, landing, s_end)
+        return landing, s_end, Event(kind=FOLD, s=s_end, state=at_end, landing_s=s_end,
+                                     landing=landing, ambiguous=ambiguous)
 
     def at_own_scale(self, y, s):
         """A minimum found at this run's stiffness scale, polished by Newton and verified

@@ -21,6 +21,13 @@ import numpy as np
 #: less than this (times l_ref): otherwise the chord's solution set does not cross itself
 #: there (it turns back, a linkage limit) and the flow has no choice to make.
 CROSSING_CHORD_TOL = 1e-9
+#: The rounding error of a chord constraint (times l_ref): its end nodes are sums of
+#: the rod vectors below (each rounded to ~1e-16 of l_ref), and the difference of the
+#: squares in (|chord|^2 - l^2) / (2 l_ref) loses as much again: ~1e-15 l_ref, a few
+#: units in the last place of L1 + L2 (config/neck.yaml: 1.2e-16 m against 2.8e-17 m).
+#: Next to a module's flat crossing Newton's rod-angle updates stall at this over the
+#: chord's gradient (see :func:`rounding`).
+CHORD_ROUNDING = 1e-15
 #: Farthest (rad, max over the module's two rods) a state may be from the crossing it is
 #: said to be at.
 CROSSING_REACH = 0.1
@@ -95,9 +102,10 @@ def _flat_angles(path, y, s, i):
     return angles
 
 
-def crossing_at(path, y, s):
-    """(module index, crossing state, [states out along each half-branch]) if ``y`` is
-    next to a module's flat crossing (within CROSSING_REACH), else None."""
+def _crossing(path, y, s):
+    """(module index, its flat angles, crossing state, eigenpairs of chord i's Hessian
+    there) if ``y`` is next to a module's flat crossing (within CROSSING_REACH), else
+    None."""
     i, _ = flatness(path, y, s)
     if i is None:
         return None
@@ -111,6 +119,43 @@ def crossing_at(path, y, s):
     values, vectors = np.linalg.eigh(_hessian(path, crossing, s, i))
     if values[0] >= 0.0 or values[1] <= 0.0:
         return None
+    return i, flat, crossing, values, vectors
+
+
+def rounding(path, y, s):
+    """(distance, radius, exact) of ``y`` and the flat crossing next to it, or None if
+    ``y`` is at no crossing.  ``distance``: rad, the larger of module i's two rod angles
+    measured from their flat angles.  ``radius``: how far chord i's constraint fixes the
+    module's angles at all, its rounding error (CHORD_ROUNDING l_ref) over its gradient
+    in them.  ``exact``: whether the crossing itself is one to rounding, its chord
+    missing its length by at most half that error.
+
+    Near the crossing the chord's constraint is c0 + x^T H x / 2 (x: the module's angles
+    from flat; c0 what the chord misses at the flat configuration), so its gradient is
+    ~|H| distance and the radius ~CHORD_ROUNDING l_ref / (|H| distance).  Where c0 is
+    not 0, the chord's solution set does not cross itself: its two arms pass the flat
+    configuration at sqrt(2 |c0| / |H|), within the radius there exactly where
+    |c0| <= CHORD_ROUNDING l_ref / 2.  Then no state the model resolves tells the arms
+    apart (the crossing is exact); otherwise a state within the radius is one Newton
+    passes on its way (and the arms' minima lie outside it)."""
+    found = _crossing(path, y, s)
+    if found is None:
+        return None
+    i, flat, crossing, _, _ = found
+    _, gradient = _chord(path, y, s, i)
+    distance = float(np.max(np.abs(y[2 * i:2 * i + 2] - flat)))
+    error = CHORD_ROUNDING * path.l_ref
+    return (distance, error / max(float(np.linalg.norm(gradient)), 1e-300),
+            abs(_chord(path, crossing, s, i)[0]) <= 0.5 * error)
+
+
+def crossing_at(path, y, s):
+    """(module index, crossing state, [states out along each half-branch]) if ``y`` is
+    next to a module's flat crossing (within CROSSING_REACH), else None."""
+    found = _crossing(path, y, s)
+    if found is None:
+        return None
+    i, flat, crossing, values, vectors = found
     states = []
     for sign in (1.0, -1.0):
         # the two lines where x^T H x = l0 l1 - l1 l0 = 0 (H's null cone)

@@ -871,6 +871,13 @@ class StackPath:
         :func:`.flat_crossing.ways_out`), or None if there is none."""
         return _flat_crossing.ways_out(self, y, s)
 
+    def crossing_rounding(self, y, s):
+        """(distance, radius, exact) of ``y`` from a module's flat crossing next to it,
+        the chords' rounding radius there (both in rad) and whether the crossing is
+        exact to rounding (see :func:`.flat_crossing.rounding`), or None if there is
+        none."""
+        return _flat_crossing.rounding(self, y, s)
+
     def _unresolved(self, y, s, smallest):
         """Whether a chord's gradient ``smallest`` is small (< 1e-2 l_ref) and the KKT
         Jacobian singular to rounding (smallest singular value < 1e-15 of its largest)

@@ -99,7 +99,7 @@ import pytest
 
 from tensegrity_ros.core import ModuleParams, settle, track_module
 from tensegrity_ros.core.continuation import TrackingError
-from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
+from tensegrity_ros.core.stack import Stack, settle_stack, stack_equilibrium_at, track_stack
 from tensegrity_ros.core.supported_range import LOAD_RATIO
 
 from reference_paths import (FIELDS, ModuleSystem, NeckSystem, angle_distance, critical_solve,
@@ -877,3 +877,36 @@ def test_neck_command_ending_on_a_flat_crossing_snaps():
     assert angle_distance(crossing, departure) <= max(system.chord_rounding_radius(departure, 1.0),
                                                       1e-8)
     assert angle_distance(ref.jumps[1].landing, departure) > 1e-2
+
+
+def test_neck_command_ending_on_an_exact_crossing_stalled_outside_its_radius_snaps():
+    """bench_round_commands seed 2 stream 11, config/neck.yaml as it starts and
+    ``joint_commands {0: 0.07, 1: 0.12, 2: 0.12}``: a fold at s = 0.8173, then module 1
+    ends the command on its flat crossing, exact (rho1 + rho2 = L1 + L2).  Newton at
+    s = 1 stalls 1.015 rounding radii from it (the radius is an order-of-magnitude
+    estimate), where the tracker took the state for a minimum off the crossing, with a
+    residual of 0.26, 1e7 times its own tolerance; the next command (head load -10 N)
+    then failed with 'no stable equilibrium reached from the given state'.  It snaps at
+    s = 1, as the reference does, ends on a state that passes its own residual test, and
+    the next command goes on from there as the reference's does."""
+    start = neck_yaml((0.09, 0.085, 0.08), head=-0.5)
+    end = neck_yaml((0.07, 0.12, 0.12), head=-0.5)
+    # the simulator's start state to the last bit (settled from the angles instead, it
+    # differs by 8e-16 and Newton at s = 1 comes within the radius: no stall)
+    state = stack_equilibrium_at(start, np.array([
+        0.753692892620719, 2.3878997609690744, 0.8127555613686603, 2.3288370922211326,
+        0.8308470499854577, 2.3107456036043357, 1.0708666895512007, 1.139331549127493]))
+    got = track_stack(start, end, state)
+    system = NeckSystem(start.modules, end.modules)
+    ref = quasi_static_path(system, np.ravel(state.theta))
+    ref = on_either_side(system, got, ref, assert_same_neck_path)
+    assert [(j.kind, j.s == 1.0) for j in got.jumps] == [('fold', False), ('fold', True)]
+    assert [j.s for j in ref.jumps][-1] == 1.0
+    final = got.final
+    assert final.residual <= 1e-10 * abs(final.eigenvalues[-1]), final.residual
+    loaded = neck_yaml((0.07, 0.12, 0.12), head=-10.0)
+    on = track_stack(end, loaded, final)
+    assert on.status == 'ok', on.message
+    system = NeckSystem(end.modules, loaded.modules)
+    ref_on = quasi_static_path(system, np.ravel(final.theta))
+    assert_same_neck_path(system, on, ref_on)

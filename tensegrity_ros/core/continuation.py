@@ -84,6 +84,12 @@ CROSSING_APPROACH = 1e-3
 #: ``_Tracker.snap_at_end_crossing``): ten times the passage radius; a minimum going on
 #: through the crossing stays ~sqrt(the step in s) of it, ~1e-6 at the last steps.
 SNAP_DISTANCE = 1e-3
+#: Next to an exact crossing (see ``flat_crossing.rounding``), Newton's iterates that
+#: stall within this many rounding radii of it are at it: the radius is an
+#: order-of-magnitude estimate of the chord's rounding (bench_round_commands seed 2,
+#: stream 11: stalled at 1.015 radii, the residual 0.26, 1e7 times the tolerance, since
+#: no state there is resolved better).
+EXACT_CROSSING_STALL = 4.0
 MAX_CROSSING_LEGS = 16
 
 
@@ -836,9 +842,10 @@ class _Tracker:
         problem's optional ``crossing_rounding(y, s)``: (distance, rounding radius,
         exact) of a state, the crossing next to it and whether that crossing is exact to
         rounding): ('at', state) where an iterate comes within the rounding radius of an
-        exact crossing, ('off', minimum) where the updates of the moving components
-        stall below that radius outside it on a verified minimum within SNAP_DISTANCE of
-        ``y``, else ``None``.
+        exact crossing or stalls within EXACT_CROSSING_STALL radii of it, ('off', minimum)
+        where the updates of the moving components stall below that radius outside a
+        crossing that is not exact, on a verified minimum within SNAP_DISTANCE of ``y``,
+        else ``None``.
 
         Next to a crossing the chord's gradient is ~|H| distance, so Newton's steps there
         are fixed only to the chord's rounding over it: they stall at that radius (the
@@ -875,12 +882,16 @@ class _Tracker:
             if found is None:
                 return None
             distance, radius, exact = found
-            if distance <= radius:
-                if exact:
-                    return 'at', y
+            stalled = _inf_norm(delta[moving]) <= radius
+            if exact and (distance <= radius
+                          or (stalled and distance <= EXACT_CROSSING_STALL * radius)):
+                return 'at', y
+            if distance <= radius or not stalled:
                 continue            # passing: the crossing's arms lie apart (see rounding)
-            if _inf_norm(delta[moving]) > radius:
-                continue
+            if exact:
+                # stalled farther from an exact crossing: not a minimum the chord resolves
+                # off it (the arms touch there); the closing-in test decides
+                return None
             slack = float(np.linalg.norm(jacobian[np.ix_(moving, moving)], 2)) * radius
             if (_inf_norm(f) <= tol + slack and self.separation(y, start) <= SNAP_DISTANCE
                     and self.definite(self.eigenvalues(y, s))):

@@ -887,7 +887,9 @@ class _Tracker:
                           or (stalled and distance <= EXACT_CROSSING_STALL * radius)):
                 return 'at', y
             if distance <= radius or not stalled:
-                continue            # passing: the crossing's arms lie apart (see rounding)
+                # still moving, or within the radius of a crossing that is not exact:
+                # Newton passing on its way (the crossing's arms lie apart, see rounding)
+                continue
             if exact:
                 # stalled farther from an exact crossing: not a minimum the chord resolves
                 # off it (the arms touch there); the closing-in test decides

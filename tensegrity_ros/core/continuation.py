@@ -103,7 +103,9 @@ class PathProblem(Protocol):
     of the overdamped mechanism (minus the gradient, projected if constrained);
     ``project`` returns a nearby admissible state (identity if unconstrained).
     ``admissible(s)`` (optional) says whether the parameters at s (possibly
-    slightly beyond [0, 1], for landing) are physically valid.
+    slightly beyond [0, 1], for landing) are physically valid.  ``on_constraints(y, s)``
+    (optional) says whether a state meets the constraints (``project`` may find none
+    near it).
 
     Optional: ``eigenvalues(y, s)`` (the stability eigenvalues alone, if cheaper),
     ``state_weights`` (per-component weights of the step-size norm, e.g. 1/length
@@ -1474,8 +1476,13 @@ class _Tracker:
         problem = self.problem
         _, psi = self.critical(y_star, s_star)
         sides = []
+        on_constraints = getattr(problem, 'on_constraints', lambda *_: True)
         for sign in (1.0, -1.0):
             start = problem.project(y_star + sign * self.step_off_vector(psi), s_land)
+            if not on_constraints(start, s_land):
+                # no admissible state next to the step-off (past a linkage limit): a
+                # flow from it would start in no configuration of the mechanism
+                continue
             sides.append((problem.energy(start, s_land), sign, start))
         sides.sort(key=lambda t: t[0])
         if kind == FOLD:
@@ -1744,6 +1751,8 @@ class _Segment:
         for name in ('state_weights', 'canonical'):
             if hasattr(problem, name):
                 setattr(self, name, getattr(problem, name))
+        if hasattr(problem, 'on_constraints'):
+            self.on_constraints = lambda y, t: problem.on_constraints(y, self.at(t))
         if hasattr(problem, 'rigid_descent'):
             self.rigid_descent = lambda y, t: problem.rigid_descent(y, self.at(t))
         if hasattr(problem, 'eigenvalues'):

@@ -52,6 +52,16 @@ _DAMPING = 1e-3
 _DAMPING_ONSET = 1e-2
 _FRAME_SIGNS, _ANGLE_SIGNS = np.array([1.0, -1.0]), np.array([-1.0, 1.0])  # StackPath.angles_at
 _BASE_AXIS = np.ones(1, dtype=complex)      # module 0's x axis A1(0) -> A2(0), as a chord
+#: Largest Gauss-Newton step of :meth:`StackPath.project` (rad, the fastest rod): next
+#: to a module folded flat the chord's gradient vanishes and the full step is unbounded
+#: (4.3e4 rad seen: bench_round_commands seed 0, stream 11), which lands on an arbitrary
+#: configuration, not a nearby one; shorter steps reach the arm of the chord's solution
+#: set next to the state.
+PROJECT_STEP = 0.1
+#: A state meets the chord constraints if it misses none by more than this (times
+#: l_ref): :meth:`StackPath.project` stalls at ~1e-13 where an admissible state is near,
+#: and misses by 1e-5 or more past a linkage limit, where none is.
+PROJECTION_TOL = 1e-9
 #: A chord constraint whose gradient is below this (times l_ref) is at a linkage limit.
 LINKAGE_LIMIT_TOL = 1e-4
 #: The value groups whose rates along a path the s-derivatives skip where they are still.
@@ -808,11 +818,21 @@ class StackPath:
                 break
             jc = p.constraint_jacobian(self)
             mobility_jc = np.linalg.solve(p.metric(self), jc.T)
-            y[:top.n_rods] -= mobility_jc @ _solve_guarded(jc @ mobility_jc, c)
+            step = mobility_jc @ _solve_guarded(jc @ mobility_jc, c)
+            y[:top.n_rods] -= step * min(1.0, PROJECT_STEP / max(np.max(np.abs(step)), 1e-300))
         p = self.point(y, s)
         jc = p.constraint_jacobian(self)
         y[top.n_rods:] = -_solve_gram(jc, jc @ self._unconstrained_gradient(p)) / self.f_ref
         return y
+
+    def on_constraints(self, y, s):
+        """Whether ``y`` meets every chord constraint at s to ``PROJECTION_TOL`` l_ref
+        (:meth:`project` may not bring a state there: past a linkage limit no admissible
+        state is near)."""
+        if not self.topology.n_chords:
+            return True
+        c = self.point(y, s).constraints(self)
+        return bool(np.max(np.abs(c)) <= PROJECTION_TOL * self.l_ref)
 
     def canonical(self, y):
         """The state with the rod angles wrapped to [-pi, pi) (for comparing states)."""

@@ -910,3 +910,29 @@ def test_neck_command_ending_on_an_exact_crossing_stalled_outside_its_radius_sna
     system = NeckSystem(end.modules, loaded.modules)
     ref_on = quasi_static_path(system, np.ravel(final.theta))
     assert_same_neck_path(system, on, ref_on)
+
+
+def test_neck_jump_from_a_flat_module_steps_off_to_a_state_nearby():
+    """bench_round_commands seed 0 stream 11, ``joint_commands {0: 0.07, 1: 0.1, 2: 0.11}``
+    from where the stream's 4th command stopped at a linkage limit: module 0 flat, its
+    chord force 5e7 N.  At s = 5e-13 the state folds; the landing steps off and is put
+    back on the chords by Gauss-Newton, whose step next to the flat module (chord gradient
+    ~0) was unbounded: it turned the rods 4.3e4 rad, 8 J up, and the flow from there
+    'landed' 0.32 J above the departure (impossible for an overdamped mechanism), then
+    folded again at s = 0.1657.  With bounded steps the landing is the reference's (one
+    jump, a branch point at 4.7e-10 there), below its departure, and the command ends on
+    the reference's final state."""
+    start = neck_yaml((0.1039999999999871, 0.103999999999971, 0.06800000000000644), head=-10.0)
+    end = neck_yaml((0.07, 0.1, 0.11), head=-10.0)
+    state = stack_equilibrium_at(start, np.array([
+        3.141591855983661, 3.1415923382572406, 3.913377605813872, 5.5113995181208715,
+        4.2023520836288535, 5.2224255897396255, 1394346.3359335014, 0.45704861267728625]))
+    got = track_stack(start, end, state)
+    system = NeckSystem(start.modules, end.modules)
+    ref = quasi_static_path(system, np.ravel(state.theta))
+    assert_same_neck_path(system, got, ref)
+    for jump in got.jumps:
+        landed = jump.landing_stack or jump.stack
+        departure = NeckSystem(jump.stack.modules).energy(np.ravel(jump.from_theta), 1.0)
+        landing = NeckSystem(landed.modules).energy(np.ravel(jump.to_theta), 1.0)
+        assert landing < departure, (jump.s, landing, departure)

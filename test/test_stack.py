@@ -329,3 +329,19 @@ def test_projection_survives_dependent_constraints():
     m = ModuleParams(rho=1e-50, ka=1e50, kb=1e50, kc=1e50, f3x=2.5)
     found = stack_equilibria(Stack((m, m)), starts=1)
     assert all(np.all(np.isfinite(e.theta)) for e in found)
+
+
+@pytest.mark.parametrize('chord, reachable', [(2.4, True), (2.499, True), (2.6, False)])
+def test_a_projection_says_whether_it_reached_the_chords(chord, reachable):
+    """Module 0 (rho 0.5, rods 1 m) reaches a top chord of at most 2.5 m (both rods
+    flat, pointing away from each other): a chord of 2.4 or 2.499 m is met by the
+    projection of a state next to that limit; one of 2.6 m by none, and the projection
+    says so (a landing does not start a flow from there)."""
+    stack = Stack((ModuleParams.paper(0.5), ModuleParams.paper(chord)))
+    path = StackPath(stack, stack)
+    y = np.zeros(path.size)
+    y[:4] = [math.pi - 0.1, 0.1, 0.3, 0.2]
+    projected = path.project(y, 0.0)
+    assert path.on_constraints(projected, 0.0) == reachable
+    miss = abs(float(path.point(projected, 0.0).constraints(path)[0]))
+    assert (miss < 1e-12) if reachable else (miss > 0.05), miss

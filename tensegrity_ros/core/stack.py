@@ -805,8 +805,10 @@ class StackPath:
         return np.concatenate([-tangential - pull, np.zeros_like(p.mu)])
 
     def project(self, y, s):
-        """Nearest admissible rod angles (Gauss-Newton in the node metric) and
-        least-squares multipliers."""
+        """Nearby admissible rod angles (Gauss-Newton in the node metric, each step at
+        most ``PROJECT_STEP``) and least-squares multipliers.  Where no admissible state
+        is near (past a linkage limit) the angles it returns miss the chords:
+        :meth:`on_constraints` tells."""
         top = self.topology
         y = np.array(y, dtype=float)
         if not top.n_chords:

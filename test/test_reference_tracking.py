@@ -936,3 +936,33 @@ def test_neck_jump_from_a_flat_module_steps_off_to_a_state_nearby():
         departure = NeckSystem(jump.stack.modules).energy(np.ravel(jump.from_theta), 1.0)
         landing = NeckSystem(landed.modules).energy(np.ravel(jump.to_theta), 1.0)
         assert landing < departure, (jump.s, landing, departure)
+
+
+def test_neck_fold_next_to_a_flat_module_is_not_placed_on_unresolved_points():
+    """bench_round_commands seed 1 stream 12, head load -2 -> -10 N from a state a
+    linkage-limit stop left (module 0 flat, chord force 7e7 N, lambda_max 4.5e8).
+    Module 2 folds where the reference's fold equations put it; the tracker placed the
+    fold 4.9e-7 in s past that, on arclength points Newton had left after one update of
+    7.9e-4 (their residual, 3.4e-6, passed a tolerance relative to lambda_max), then
+    could not land.  Arclength points must now be resolved: every fold the tracker
+    reports is the reference's to 1e-7, and where it stops short of the fold it says why
+    and keeps a verified minimum before it."""
+    start = neck_yaml((0.13, 0.10999999999999782, 0.08), head=-2.0)
+    end = neck_yaml((0.13, 0.10999999999999782, 0.08), head=-10.0)
+    state = stack_equilibrium_at(start, np.array([
+        1.3420315227120613e-07, 3.141592519386641, 0.6572641532455312, 2.484328500344262,
+        0.8026277750236046, 2.3389648785661885, 562317.3079582418, 1.6677821604770362]))
+    got = track_stack(start, end, state)
+    system = NeckSystem(start.modules, end.modules)
+    last = got.jumps[0].from_theta if got.jumps else got.final.theta
+    # (where it stopped: the head load moves from -2 to -10 N along s)
+    s_last = got.jumps[0].s if got.jumps else (got.end.modules[2].f3y + 2.0) / -8.0
+    fold = critical_solve(system, np.ravel(last), s_last)
+    assert np.max(np.abs(system.critical_residual(fold.x)[:-1])) < 1e-12, fold
+    s_fold = fold.x[-1]
+    assert abs(s_fold - 0.7752039726) < 1e-9, s_fold       # the reference path's fold
+    if got.jumps:
+        assert abs(got.jumps[0].s - s_fold) <= LOCATION_TOL, (got.jumps[0].s, s_fold)
+    else:
+        assert got.status == 'failed' and 'linkage limit' in got.message, got.message
+        assert s_last < s_fold and got.final.stable

@@ -91,6 +91,16 @@ SNAP_DISTANCE = 1e-3
 #: no state there is resolved better).
 EXACT_CROSSING_STALL = 4.0
 MAX_CROSSING_LEGS = 16
+#: An arclength point is kept only where its Newton's last update moved the state by
+#: less than this (weighted state norm): Newton stopped after an update that no longer
+#: contracts leaves the point off the branch by about that update, and its residual may
+#: still pass a tolerance relative to the stiffness scale, which a module folded flat
+#: inflates (config/neck.yaml, bench_round_commands seed 1, stream 12: points kept
+#: after one update of 7.9e-4, residual 3.4e-6 against 1.3e-5, lambda_max 4.5e8; the
+#: fold was located on them, 4.9e-7 in s past the one the reference's fold equations
+#: give, and the landing failed).  Next to that flat module, whose angles the chord
+#: fixes only to ~sqrt(rounding), resolved points still move by up to 1.2e-7.
+ARC_RESOLUTION = 1e-6
 
 
 class PathProblem(Protocol):
@@ -671,7 +681,7 @@ class _Tracker:
         z = predicted.copy()
         matrix = np.empty((n + 1, n + 1))
         matrix[n] = direction
-        previous = math.inf
+        previous = applied = math.inf
         for _ in range(self.settings.newton_iterations):
             y, s = z[:n], z[n]
             matrix[:n, :n] = problem.jacobian(y, s)
@@ -685,13 +695,14 @@ class _Tracker:
             if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
                 break
             z, previous = z - delta, size
+            applied = self.step_norm(delta[:n])
             if size <= 1e-14 * (1.0 + _inf_norm(z)):
                 break
         y, s = z[:n], float(z[n])
         # the extended system is regular at folds, so it converges to rounding level;
         # where it does not (a singular linkage limit), the step is refused
         miss = z - predicted
-        if (not self.residual_ok(y, s, 1e-3)
+        if (not self.residual_ok(y, s, 1e-3) or not applied <= ARC_RESOLUTION
                 or _inf_norm(miss[:n] if any_s else miss) > 0.5 * h + self.settings.same_state_tol):
             return None
         if not self.energy_consistent(y0, s0, y, s):

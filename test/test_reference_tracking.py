@@ -966,3 +966,25 @@ def test_neck_fold_next_to_a_flat_module_is_not_placed_on_unresolved_points():
     else:
         assert got.status == 'failed' and 'linkage limit' in got.message, got.message
         assert s_last < s_fold and got.final.stable
+
+
+def test_neck_buckled_back_onto_its_symmetric_branch_by_a_hair_is_no_jump():
+    """bench_round_commands seed 0 stream 13, ``joint_commands {0: 0.12, 1: 0.1, 2: 0.09}``
+    from the buckled state the stream left (module 1 bent, head load -5 N): the buckled
+    minimum runs back onto the symmetric branch at s = 0.0111 (a pitchfork run
+    backwards), and the mechanism goes on, as the reference's path does.  From this start
+    (2e-15 off one that gave no jump) the tracker reported a branch point whose landing
+    lay 3.1e-5 from its departure: Newton from the departure did not converge there
+    (singular Jacobian) and the check by a landing 100 times closer failed, so the
+    landing 'stood'.  A landing within the critical state's resolution
+    (``passage_radius``) is no move, not a jump."""
+    start = neck_yaml((0.07, 0.1, 0.13999999999998752), head=-5.0)
+    end = neck_yaml((0.12, 0.1, 0.09), head=-5.0)
+    state = stack_equilibrium_at(start, np.array([
+        -0.7708227628112966, 3.9382108329533545, -0.1266442604532281, 3.151032663923412,
+        -0.42886813786491224, 3.3427708483352045, -1.673811489870367, -1.8761728389807621]))
+    got = track_stack(start, end, state)
+    system = NeckSystem(start.modules, end.modules)
+    ref = quasi_static_path(system, np.ravel(state.theta))
+    assert ref.jumps == []
+    assert_same_neck_path(system, got, ref)

@@ -52,6 +52,11 @@ _DAMPING = 1e-3
 _DAMPING_ONSET = 1e-2
 _FRAME_SIGNS, _ANGLE_SIGNS = np.array([1.0, -1.0]), np.array([-1.0, 1.0])  # StackPath.angles_at
 _BASE_AXIS = np.ones(1, dtype=complex)      # module 0's x axis A1(0) -> A2(0), as a chord
+# numpy's C routines without their __array_function__ dispatch (~0.2 us a call on these
+# small operands, as ndarray.dot against np.dot): the same routine, the same numbers.  Used
+# where the small-command step calls them (a few dozen calls a command).
+_vdot = getattr(np.vdot, '_implementation', np.vdot)
+_concatenate = getattr(np.concatenate, '_implementation', np.concatenate)
 #: A chord constraint whose gradient is below this (times l_ref) is at a linkage limit.
 LINKAGE_LIMIT_TOL = 1e-4
 #: The value groups whose rates along a path the s-derivatives skip where they are still.
@@ -171,6 +176,8 @@ class _Topology:
         self.n_springs = len(springs)
         self.mobility = rods[_FIXED:].T @ rods[_FIXED:]   # moving nodes shared by two rods
         self.identity = np.eye(self.n_rods)
+        # Q of a QR of the constraint Jacobian^T applied to these: a null basis (_null_basis)
+        self.trailing_columns = _trailing_columns(self.n_rods, self.n_chords)
         # K = E^T diag(w) E as one product: (w @ element_outer).reshape(2N, 2N)
         self.element_outer = np.einsum('er,eq->erq', self.element_rods,
                                        self.element_rods).reshape(len(ends), -1)
@@ -440,7 +447,7 @@ class _Point:
         if self._pair is not None:
             return self._pair[0]
         n = path.topology.n_rods
-        hessian = np.dot(self.weights, path.topology.element_outer).reshape(n, n)
+        hessian = self.weights.dot(path.topology.element_outer).reshape(n, n)
         hessian *= self.gram
         hessian.reshape(n * n)[::n + 1] -= self.moment.real
         return hessian
@@ -612,9 +619,9 @@ class StackPath:
         blocks -- less the moments / l_ref on the diagonal.  (Equal to :meth:`jacobian_at`
         to rounding; a real view of a complex array, for a LAPACK factorization.)"""
         n, size = self.topology.n_rods, self.size
-        u = np.concatenate((p.rods, p.diff[self.topology.n_springs:]))
+        u = _concatenate((p.rods, p.diff[self.topology.n_springs:]))
         table = self._jacobian_coefficients.copy()
-        table[:n, :n] = np.dot(p.weights, self._outer_per_l_ref).reshape(n, n)
+        table[:n, :n] = p.weights.dot(self._outer_per_l_ref).reshape(n, n)
         table *= u.conj()[:, None]
         table *= u
         table.reshape(size * size)[:n * (size + 1):size + 1] -= p.moment.real * self.inv_l_ref
@@ -635,7 +642,7 @@ class StackPath:
                 return p.rates
             ratio = rate.rod / p.values.rod
             d_rods = p.rods * ratio
-            d_diff = np.dot(self.topology.element_rods_c, d_rods)
+            d_diff = self.topology.element_rods_c.dot(d_rods)
             d_diff += rate.shift
             p.rates = ratio, d_rods, d_diff, (p.diff.conj() * d_diff).real
         return p.rates
@@ -660,7 +667,7 @@ class StackPath:
             if d_weighted is None:
                 d_force = -rate.rod_loads
             else:
-                d_force = np.dot(top.element_rods_tc, d_weighted)
+                d_force = top.element_rods_tc.dot(d_weighted)
                 if moving['rod_loads']:
                     d_force -= rate.rod_loads
             # d Im(conj(v) f) with dv = ratio v: Im(conj(v) df) + ratio Im(conj(v) f)
@@ -683,10 +690,10 @@ class StackPath:
         # U + mu . c = (1/2) w . |d|^2 - (loads' work) - mu . l^2 / (2 l_ref): the element
         # weights w are the stiffnesses and mu / l_ref (one product for springs and chords)
         v = p.values
-        energy = (0.5 * np.dot(p.weights, p.squares) - np.vdot(v.rod_loads, p.rods).real
+        energy = (0.5 * p.weights.dot(p.squares) - _vdot(v.rod_loads, p.rods).real
                   - v.base_load * v.rho0)
         if self.topology.n_chords:
-            energy -= self.half_inv_l_ref * np.dot(p.mu, v.chord_squares)
+            energy -= self.half_inv_l_ref * p.mu.dot(v.chord_squares)
         return float(energy)
 
     def energy_and_rate(self, y, s):
@@ -701,17 +708,17 @@ class StackPath:
         v, rate, ns = p.values, self._rate_values, self.topology.n_springs
         _, d_rods, _, cross = self._rates(p)
         moving = self._moving
-        springs = 0.0 if cross is None else float(np.dot(p.weights, cross))
+        springs = 0.0 if cross is None else float(p.weights.dot(cross))
         if moving['k']:
-            springs += 0.5 * float(np.dot(rate.k, p.squares[:ns]))
+            springs += 0.5 * float(rate.k.dot(p.squares[:ns]))
         work = rate.base_load * v.rho0 + v.base_load * rate.rho0
         if moving['rod_loads']:
-            work += np.vdot(rate.rod_loads, p.rods).real
+            work += _vdot(rate.rod_loads, p.rods).real
         if d_rods is not None:
-            work += np.vdot(v.rod_loads, d_rods).real
+            work += _vdot(v.rod_loads, d_rods).real
         if not self.topology.n_chords:
             return springs - work
-        return springs - work - float(np.dot(p.mu, v.chord * rate.chord)) / self.l_ref
+        return springs - work - float(p.mu.dot(v.chord * rate.chord)) / self.l_ref
 
     def _reduced(self, y, s):
         """(reduced Hessian, reduced metric, null basis Z, point) on the tangent space."""
@@ -728,13 +735,19 @@ class StackPath:
         return self.eigenvalues_at(self.point(y, s))
 
     def eigenvalues_at(self, p):
-        a, b, _, _ = self._reduced_at(p)
-        if self.topology.n_chords:
+        top = self.topology
+        if top.n_chords:
+            # :meth:`_reduced_at` inlined (one per command: its calls and tuples are ~1 us)
+            qr, tau, _, _ = _dgeqrf(p.constraint_jacobian(self).T)
+            z, _, _ = _dormqr('L', 'N', qr, tau, top.trailing_columns, top.n_rods)
+            hessian, metric = p.pair(self)
+            zt = z.T
             # fresh C-ordered symmetric reductions: their transposes are Fortran-ordered
             # views that LAPACK may overwrite, so it copies nothing (half the call)
-            values, _, info = _dsygv(a.T, b.T, 1, 'N', overwrite_a=1, overwrite_b=1)
+            values, _, info = _dsygv(zt.dot(hessian).dot(z).T, zt.dot(metric).dot(z).T, 1,
+                                     'N', overwrite_a=1, overwrite_b=1)
         else:                                   # the point's own matrices: not to be overwritten
-            values, _, info = _dsygv(a, b, 1, 'N')
+            values, _, info = _dsygv(p.hessian(self), p.metric(self), 1, 'N')
         if info != 0:
             raise np.linalg.LinAlgError(f'reduced eigenproblem failed (dsygv info={info})')
         return values

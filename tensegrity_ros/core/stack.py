@@ -655,15 +655,15 @@ class StackPath:
         top, rate = self.topology, self._rate_values
         ratio, _, d_diff, cross = self._rates(p)
         moving = self._moving
-        out = np.empty(self.size)
         n, ns = top.n_rods, top.n_springs
         d_weighted = None if d_diff is None else p.weights * d_diff
         if moving['k']:
             spring_rates = rate.weights * p.diff                  # (complex where rods are still)
             d_weighted = spring_rates if d_weighted is None else d_weighted + spring_rates
         if d_weighted is None and not moving['rod_loads']:
-            out[:n] = 0.0                   # no force moves (and the rods are still)
+            out = np.zeros(self.size)       # no force moves (and the rods are still)
         else:
+            out = np.empty(self.size)
             if d_weighted is None:
                 d_force = -rate.rod_loads
             else:
@@ -1183,8 +1183,9 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
              and state_or_theta.parameters == start._bytes else None)
     quick = whole_command_step(path, y0, settings, known)
     if quick is not None:
-        final = _end_record(path, *quick[:5])
-        keep_final_point(final, path, quick[4], quick[5])
+        y1, eigenvalues, energy, residual, point, factors = quick
+        final = _end_record(path, y1, eigenvalues, energy, residual, point)
+        keep_final_point(final, path, point, factors)
         return _one_step_track(final, end)
     result = _continuation.track_settled(path, y0, settings,
                                          known.certificate if known else '')

@@ -482,6 +482,19 @@ class _Point:
             self._jc = (chords.conj()[:, None] * self.rods).imag * path.chord_rods_scaled
         return self._jc
 
+    def products(self, path):
+        """Make the Gram matrix and the constraint Jacobian (if neither is made) from one
+        outer product conj(u) u^T of u = (rods, chords): its rod block's real part is the
+        Gram matrix, its chord-rod block's imaginary part chord . (i v_r) (the same
+        products as :attr:`gram` and :meth:`constraint_jacobian` make alone: the same
+        numbers, in one product where the reduced eigenproblem needs both)."""
+        if self._gram is None and self._jc is None:
+            n = self._n
+            u = _concatenate((self.rods, self.diff[path.topology.n_springs:]))
+            products = u.conj()[:, None] * u
+            self._gram = products[:n, :n].real
+            self._jc = products[n:, :n].imag * path.chord_rods_scaled
+
 
 class StackPath:
     """A stack along p(s) = start + s (end - start), as a tracker PathProblem.
@@ -738,6 +751,7 @@ class StackPath:
         top = self.topology
         if top.n_chords:
             # :meth:`_reduced_at` inlined (one per command: its calls and tuples are ~1 us)
+            p.products(self)
             qr, tau, _, _ = _dgeqrf(p.constraint_jacobian(self).T)
             z, _, _ = _dormqr('L', 'N', qr, tau, top.trailing_columns, top.n_rods)
             hessian, metric = p.pair(self)

@@ -492,7 +492,9 @@ class _Point:
             n = self._n
             u = _concatenate((self.rods, self.diff[path.topology.n_springs:]))
             products = u.conj()[:, None] * u
-            self._gram = products[:n, :n].real
+            # (a contiguous copy: the Hessian's and the metric's products with it are
+            # twice as fast as with the strided real view, ~1 us of the two)
+            self._gram = products[:n, :n].real.copy()
             self._jc = products[n:, :n].imag * path.chord_rods_scaled
 
 

@@ -528,7 +528,8 @@ class StackPath:
         self.f_ref_per_l_ref = self.f_ref / self.l_ref
         self.inv_l_ref = 1.0 / self.l_ref
         (self.weight_map, self.chord_rods_scaled, self._jacobian_coefficients,
-         self._outer_per_l_ref, self._residual_scales) = top.scaled_tables(self.l_ref, self.f_ref)
+         self._outer_per_l_ref,
+         self._residual_scales) = top.scaled_tables(self.l_ref, self.f_ref)
         self._zero_values = zero
         self._rate_values = _Values.difference(top, one, zero)
         # which parameter groups move along the path (a still group adds nothing to d/ds)

@@ -43,6 +43,11 @@ from .module import ModuleParams, PARAMETER_NAMES, InvalidParameterError
 from .stack_fast_step import keep_final_point, whole_command_step
 from .tolerances import DEFINITENESS_TOL, verified_minimum
 
+# numpy's C routines without their __array_function__ dispatch (~0.2 us a call on these
+# small operands, as ndarray.dot against np.dot): the same routine, the same numbers.  Used
+# where the small-command step calls them (a few dozen calls a command).
+_vdot = getattr(np.vdot, '_implementation', np.vdot)
+_concatenate = getattr(np.concatenate, '_implementation', np.concatenate)
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
 _PARAMETERS_OF = operator.attrgetter(*PARAMETER_NAMES)     # a module's parameters, in order
 _FIXED = 2          # A1(0) and A2(0) are the first two entries of the node table
@@ -52,11 +57,6 @@ _DAMPING = 1e-3
 _DAMPING_ONSET = 1e-2
 _FRAME_SIGNS, _ANGLE_SIGNS = np.array([1.0, -1.0]), np.array([-1.0, 1.0])  # StackPath.angles_at
 _BASE_AXIS = np.ones(1, dtype=complex)      # module 0's x axis A1(0) -> A2(0), as a chord
-# numpy's C routines without their __array_function__ dispatch (~0.2 us a call on these
-# small operands, as ndarray.dot against np.dot): the same routine, the same numbers.  Used
-# where the small-command step calls them (a few dozen calls a command).
-_vdot = getattr(np.vdot, '_implementation', np.vdot)
-_concatenate = getattr(np.concatenate, '_implementation', np.concatenate)
 #: A chord constraint whose gradient is below this (times l_ref) is at a linkage limit.
 LINKAGE_LIMIT_TOL = 1e-4
 #: The value groups whose rates along a path the s-derivatives skip where they are still.

@@ -43,6 +43,11 @@ from .module import ModuleParams, PARAMETER_NAMES, InvalidParameterError
 from .stack_fast_step import keep_final_point, whole_command_step
 from .tolerances import DEFINITENESS_TOL, verified_minimum
 
+# numpy's C routines without their __array_function__ dispatch (~0.2 us a call on these
+# small operands, as ndarray.dot against np.dot): the same routine, the same numbers.  Used
+# where the small-command step calls them (a few dozen calls a command).
+_vdot = getattr(np.vdot, '_implementation', np.vdot)
+_concatenate = getattr(np.concatenate, '_implementation', np.concatenate)
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
 _PARAMETERS_OF = operator.attrgetter(*PARAMETER_NAMES)     # a module's parameters, in order
 _FIXED = 2          # A1(0) and A2(0) are the first two entries of the node table
@@ -181,6 +186,8 @@ class _Topology:
         self.n_springs = len(springs)
         self.mobility = rods[_FIXED:].T @ rods[_FIXED:]   # moving nodes shared by two rods
         self.identity = np.eye(self.n_rods)
+        # Q of a QR of the constraint Jacobian^T applied to these: a null basis (_null_basis)
+        self.trailing_columns = _trailing_columns(self.n_rods, self.n_chords)
         # K = E^T diag(w) E as one product: (w @ element_outer).reshape(2N, 2N)
         self.element_outer = np.einsum('er,eq->erq', self.element_rods,
                                        self.element_rods).reshape(len(ends), -1)
@@ -213,11 +220,13 @@ class _Topology:
 
     def scaled_tables(self, l_ref, f_ref):
         """(weight map, chord rods * -1 / l_ref, Jacobian coefficients, element outer
-        products / l_ref) of a path with these scales (kept: a stream of actuator
-        commands shares them).  The weight map takes a state to the chords' element
+        products / l_ref, residual scales) of a path with these scales (kept: a stream of
+        actuator commands shares them).  The weight map takes a state to the chords' element
         weights: multiplier j (state entry 2N + j) times f_ref / l_ref is the weight of
         element n_springs + j (None without chords).  The Jacobian coefficients are
-        those of :meth:`StackPath.prediction_jacobian_at` without the stiffness block."""
+        those of :meth:`StackPath.prediction_jacobian_at` without the stiffness block.
+        The residual scales are 1 / l_ref (2N torques) then 0.5 / l_ref (N - 1 chords):
+        :meth:`StackPath.residual_at` scales the whole residual in one product."""
         key = (l_ref, f_ref)
         found = self._scaled_tables.get(key)
         if found is None:
@@ -233,7 +242,10 @@ class _Topology:
                 weight_map[self.n_springs + chords, n + chords] = f_ref / l_ref
                 coefficients[n:, :n] = -1j * chord_rods
                 coefficients[:n, n:] = 1j * (f_ref / l_ref) * chord_rods.T
-            found = (weight_map, chord_rods, coefficients, self.element_outer * (1.0 / l_ref))
+            residual_scales = np.concatenate((np.full(n, 1.0 / l_ref),
+                                              np.full(self.n_chords, 0.5 / l_ref)))
+            found = (weight_map, chord_rods, coefficients, self.element_outer * (1.0 / l_ref),
+                     residual_scales)
             for table in found:
                 if table is not None:
                     table.flags.writeable = False      # shared by every path of these scales
@@ -445,7 +457,7 @@ class _Point:
         if self._pair is not None:
             return self._pair[0]
         n = path.topology.n_rods
-        hessian = np.dot(self.weights, path.topology.element_outer).reshape(n, n)
+        hessian = self.weights.dot(path.topology.element_outer).reshape(n, n)
         hessian *= self.gram
         hessian.reshape(n * n)[::n + 1] -= self.moment.real
         return hessian
@@ -480,6 +492,21 @@ class _Point:
             self._jc = (chords.conj()[:, None] * self.rods).imag * path.chord_rods_scaled
         return self._jc
 
+    def products(self, path):
+        """Make the Gram matrix and the constraint Jacobian (if neither is made) from one
+        outer product conj(u) u^T of u = (rods, chords): its rod block's real part is the
+        Gram matrix, its chord-rod block's imaginary part chord . (i v_r) (the same
+        products as :attr:`gram` and :meth:`constraint_jacobian` make alone: the same
+        numbers, in one product where the reduced eigenproblem needs both)."""
+        if self._gram is None and self._jc is None:
+            n = self._n
+            u = _concatenate((self.rods, self.diff[path.topology.n_springs:]))
+            products = u.conj()[:, None] * u
+            # (a contiguous copy: the Hessian's and the metric's products with it are
+            # twice as fast as with the strided real view, ~1 us of the two)
+            self._gram = products[:n, :n].real.copy()
+            self._jc = products[n:, :n].imag * path.chord_rods_scaled
+
 
 class StackPath:
     """A stack along p(s) = start + s (end - start), as a tracker PathProblem.
@@ -511,7 +538,8 @@ class StackPath:
         self.f_ref_per_l_ref = self.f_ref / self.l_ref
         self.inv_l_ref = 1.0 / self.l_ref
         (self.weight_map, self.chord_rods_scaled, self._jacobian_coefficients,
-         self._outer_per_l_ref) = top.scaled_tables(self.l_ref, self.f_ref)
+         self._outer_per_l_ref,
+         self._residual_scales) = top.scaled_tables(self.l_ref, self.f_ref)
         self._zero_values = zero
         self._rate_values = _Values.difference(top, one, zero)
         # which parameter groups move along the path (a still group adds nothing to d/ds)
@@ -588,10 +616,14 @@ class StackPath:
         return self.residual_at(self.point(y, s))
 
     def residual_at(self, p):
-        gradient = p.moment.imag * self.inv_l_ref
-        if not self.topology.n_chords:
-            return gradient
-        return np.concatenate([gradient, p.constraints(self)])
+        # [dL/dphi / l_ref, constraints]: the chords' squared lengths are kept on the point
+        # (the energy reads them), the scaling is one product (each entry times the same
+        # 1 / l_ref or 0.5 / l_ref as alone: the same numbers, ~1 us less per residual)
+        top = self.topology
+        if not top.n_chords:
+            return p.moment.imag * self.inv_l_ref
+        return np.concatenate((p.moment.imag, p.squares[top.n_springs:]
+                               - p.values.chord_squares)) * self._residual_scales
 
     def jacobian(self, y, s):
         return self.jacobian_at(self.point(y, s))
@@ -613,9 +645,9 @@ class StackPath:
         blocks -- less the moments / l_ref on the diagonal.  (Equal to :meth:`jacobian_at`
         to rounding; a real view of a complex array, for a LAPACK factorization.)"""
         n, size = self.topology.n_rods, self.size
-        u = np.concatenate((p.rods, p.diff[self.topology.n_springs:]))
+        u = _concatenate((p.rods, p.diff[self.topology.n_springs:]))
         table = self._jacobian_coefficients.copy()
-        table[:n, :n] = np.dot(p.weights, self._outer_per_l_ref).reshape(n, n)
+        table[:n, :n] = p.weights.dot(self._outer_per_l_ref).reshape(n, n)
         table *= u.conj()[:, None]
         table *= u
         table.reshape(size * size)[:n * (size + 1):size + 1] -= p.moment.real * self.inv_l_ref
@@ -636,7 +668,7 @@ class StackPath:
                 return p.rates
             ratio = rate.rod / p.values.rod
             d_rods = p.rods * ratio
-            d_diff = np.dot(self.topology.element_rods_c, d_rods)
+            d_diff = self.topology.element_rods_c.dot(d_rods)
             d_diff += rate.shift
             p.rates = ratio, d_rods, d_diff, (p.diff.conj() * d_diff).real
         return p.rates
@@ -649,19 +681,19 @@ class StackPath:
         top, rate = self.topology, self._rate_values
         ratio, _, d_diff, cross = self._rates(p)
         moving = self._moving
-        out = np.empty(self.size)
         n, ns = top.n_rods, top.n_springs
         d_weighted = None if d_diff is None else p.weights * d_diff
         if moving['k']:
             spring_rates = rate.weights * p.diff                  # (complex where rods are still)
             d_weighted = spring_rates if d_weighted is None else d_weighted + spring_rates
         if d_weighted is None and not moving['rod_loads']:
-            out[:n] = 0.0                   # no force moves (and the rods are still)
+            out = np.zeros(self.size)       # no force moves (and the rods are still)
         else:
+            out = np.empty(self.size)
             if d_weighted is None:
                 d_force = -rate.rod_loads
             else:
-                d_force = np.dot(top.element_rods_tc, d_weighted)
+                d_force = top.element_rods_tc.dot(d_weighted)
                 if moving['rod_loads']:
                     d_force -= rate.rod_loads
             # d Im(conj(v) f) with dv = ratio v: Im(conj(v) df) + ratio Im(conj(v) f)
@@ -684,10 +716,10 @@ class StackPath:
         # U + mu . c = (1/2) w . |d|^2 - (loads' work) - mu . l^2 / (2 l_ref): the element
         # weights w are the stiffnesses and mu / l_ref (one product for springs and chords)
         v = p.values
-        energy = (0.5 * np.dot(p.weights, p.squares) - np.vdot(v.rod_loads, p.rods).real
+        energy = (0.5 * p.weights.dot(p.squares) - _vdot(v.rod_loads, p.rods).real
                   - v.base_load * v.rho0)
         if self.topology.n_chords:
-            energy -= self.half_inv_l_ref * np.dot(p.mu, v.chord_squares)
+            energy -= self.half_inv_l_ref * p.mu.dot(v.chord_squares)
         return float(energy)
 
     def energy_and_rate(self, y, s):
@@ -702,17 +734,17 @@ class StackPath:
         v, rate, ns = p.values, self._rate_values, self.topology.n_springs
         _, d_rods, _, cross = self._rates(p)
         moving = self._moving
-        springs = 0.0 if cross is None else float(np.dot(p.weights, cross))
+        springs = 0.0 if cross is None else float(p.weights.dot(cross))
         if moving['k']:
-            springs += 0.5 * float(np.dot(rate.k, p.squares[:ns]))
+            springs += 0.5 * float(rate.k.dot(p.squares[:ns]))
         work = rate.base_load * v.rho0 + v.base_load * rate.rho0
         if moving['rod_loads']:
-            work += np.vdot(rate.rod_loads, p.rods).real
+            work += _vdot(rate.rod_loads, p.rods).real
         if d_rods is not None:
-            work += np.vdot(v.rod_loads, d_rods).real
+            work += _vdot(v.rod_loads, d_rods).real
         if not self.topology.n_chords:
             return springs - work
-        return springs - work - float(np.dot(p.mu, v.chord * rate.chord)) / self.l_ref
+        return springs - work - float(p.mu.dot(v.chord * rate.chord)) / self.l_ref
 
     def _reduced(self, y, s):
         """(reduced Hessian, reduced metric, null basis Z, point) on the tangent space."""
@@ -729,13 +761,20 @@ class StackPath:
         return self.eigenvalues_at(self.point(y, s))
 
     def eigenvalues_at(self, p):
-        a, b, _, _ = self._reduced_at(p)
-        if self.topology.n_chords:
+        top = self.topology
+        if top.n_chords:
+            # :meth:`_reduced_at` inlined (one per command: its calls and tuples are ~1 us)
+            p.products(self)
+            qr, tau, _, _ = _dgeqrf(p.constraint_jacobian(self).T)
+            z, _, _ = _dormqr('L', 'N', qr, tau, top.trailing_columns, top.n_rods)
+            hessian, metric = p.pair(self)
+            zt = z.T
             # fresh C-ordered symmetric reductions: their transposes are Fortran-ordered
             # views that LAPACK may overwrite, so it copies nothing (half the call)
-            values, _, info = _dsygv(a.T, b.T, 1, 'N', overwrite_a=1, overwrite_b=1)
+            values, _, info = _dsygv(zt.dot(hessian).dot(z).T, zt.dot(metric).dot(z).T, 1,
+                                     'N', overwrite_a=1, overwrite_b=1)
         else:                                   # the point's own matrices: not to be overwritten
-            values, _, info = _dsygv(a, b, 1, 'N')
+            values, _, info = _dsygv(p.hessian(self), p.metric(self), 1, 'N')
         if info != 0:
             raise np.linalg.LinAlgError(f'reduced eigenproblem failed (dsygv info={info})')
         return values
@@ -1138,6 +1177,17 @@ class StackTrack:
     passages: tuple = ()
 
 
+def _one_step_track(final, end):
+    """``StackTrack(final=final, end=end, jumps=(), steps=1)``, made as :func:`_end_record`
+    makes its record (filling the instance dict: 0.3 us against 1.0 through the frozen
+    dataclass's __init__; StackTrack has no __post_init__, and a field added to it must be
+    added here too)."""
+    track = object.__new__(StackTrack)
+    track.__dict__.update(final=final, end=end, jumps=(), status='ok', message='', steps=1,
+                          passages=())
+    return track
+
+
 def _checked_angles(theta, n):
     theta = np.asarray(theta, dtype=float)
     if theta.shape not in ((n, 2), (2 * n,)):
@@ -1172,9 +1222,10 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
              and state_or_theta.parameters == start._bytes else None)
     quick = whole_command_step(path, y0, settings, known)
     if quick is not None:
-        final = _end_record(path, *quick[:5])
-        keep_final_point(final, path, quick[4], quick[5])
-        return StackTrack(final=final, end=end, jumps=(), steps=1)
+        y1, eigenvalues, energy, residual, point, factors = quick
+        final = _end_record(path, y1, eigenvalues, energy, residual, point)
+        keep_final_point(final, path, point, factors)
+        return _one_step_track(final, end)
     result = _continuation.track_settled(path, y0, settings,
                                          known.certificate if known else '')
     jumps = tuple(StackJump(kind=e.kind, s=e.s, stack=path.params(e.s),

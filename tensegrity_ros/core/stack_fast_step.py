@@ -141,7 +141,8 @@ def whole_command_step(path, y, settings, known=None):
     residual and energy are those at s = 0."""
     cfg = settings
     start, factors = _start_point(path, y, known)
-    eigenvalues = path.eigenvalues_at(start) if known is None else known.eigenvalues
+    # (the eigenvalues' tests on Python floats: the same comparisons, without numpy scalars)
+    eigenvalues = (path.eigenvalues_at(start) if known is None else known.eigenvalues).tolist()
     scale = max(abs(eigenvalues[-1]), 1e-300)
     tol = cfg.residual_tol * scale
     weights = path.state_weights
@@ -168,9 +169,10 @@ def whole_command_step(path, y, settings, known=None):
     if not _continuation.energy_consistent(energy0, energy1, energy_s0, energy_s1, 1.0, scale):
         return None
     eigenvalues1 = path.eigenvalues_at(end)
-    if not _continuation.positive_definite(eigenvalues1, scale, cfg):
+    values1 = eigenvalues1.tolist()
+    if not _continuation.positive_definite(values1, scale, cfg):
         return None
-    if eigenvalues1[0] < _STEADY * eigenvalues[0]:
+    if values1[0] < _STEADY * eigenvalues[0]:
         # lambda_min fell: a fold or branch point may be near; the tracker's step bound
         # (its forward-difference probe of d lambda_min / ds at the start) decides
         rate = _continuation.forward_rate(lambda y, s: path.eigenvalues_at(path.evaluate(y, s)),

@@ -117,3 +117,17 @@ def test_a_record_keeps_rod_angles_within_a_turn_whatever_state_it_is_made_from(
         track = track_stack(stack, moved, start)
         assert track.status == 'ok' and not track.jumps
         assert np.all(np.abs(track.final.state[:n]) <= math.pi + 0.1)
+
+
+def test_a_one_step_track_is_the_dataclass_one():
+    """The small command's result is made by filling the instance dict (issue 14): it must
+    equal the frozen dataclass made through its own __init__, field for field, so that a
+    field added to StackTrack cannot be left out of it silently."""
+    from tensegrity_ros.core.stack import Stack, StackTrack, _one_step_track, track_stack
+    start = Stack(tuple(NECK))
+    end = start.with_module(1, rho=0.086)
+    track = track_stack(start, end, np.array(NECK_THETA))
+    assert track.steps == 1                     # the small-command path
+    made = StackTrack(final=track.final, end=end, jumps=(), steps=1)
+    assert _one_step_track(track.final, end) == made
+    assert vars(_one_step_track(track.final, end)) == vars(made)

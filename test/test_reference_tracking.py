@@ -879,6 +879,15 @@ def test_neck_command_ending_on_a_flat_crossing_snaps():
     assert angle_distance(ref.jumps[1].landing, departure) > 1e-2
 
 
+def tracked_and_reference(start, end, state):
+    """(kept start, tracker's path, reference system, reference's path) from a state the
+    simulator kept, given to the last bit (replayed commands are rounding-sensitive)."""
+    held = stack_equilibrium_at(start, np.array(state))
+    got = track_stack(start, end, held)
+    system = NeckSystem(start.modules, end.modules)
+    return held, got, system, quasi_static_path(system, np.ravel(held.theta))
+
+
 def test_neck_command_ending_on_an_exact_crossing_stalled_outside_its_radius_snaps():
     """bench_round_commands seed 2 stream 11, config/neck.yaml as it starts and
     ``joint_commands {0: 0.07, 1: 0.12, 2: 0.12}``: a fold at s = 0.8173, then module 1
@@ -893,12 +902,9 @@ def test_neck_command_ending_on_an_exact_crossing_stalled_outside_its_radius_sna
     end = neck_yaml((0.07, 0.12, 0.12), head=-0.5)
     # the simulator's start state to the last bit (settled from the angles instead, it
     # differs by 8e-16 and Newton at s = 1 comes within the radius: no stall)
-    state = stack_equilibrium_at(start, np.array([
+    _, got, system, ref = tracked_and_reference(start, end, [
         0.753692892620719, 2.3878997609690744, 0.8127555613686603, 2.3288370922211326,
-        0.8308470499854577, 2.3107456036043357, 1.0708666895512007, 1.139331549127493]))
-    got = track_stack(start, end, state)
-    system = NeckSystem(start.modules, end.modules)
-    ref = quasi_static_path(system, np.ravel(state.theta))
+        0.8308470499854577, 2.3107456036043357, 1.0708666895512007, 1.139331549127493])
     ref = on_either_side(system, got, ref, assert_same_neck_path)
     assert [(j.kind, j.s == 1.0) for j in got.jumps] == [('fold', False), ('fold', True)]
     assert [j.s for j in ref.jumps][-1] == 1.0
@@ -924,12 +930,9 @@ def test_neck_jump_from_a_flat_module_steps_off_to_a_state_nearby():
     the reference's final state."""
     start = neck_yaml((0.1039999999999871, 0.103999999999971, 0.06800000000000644), head=-10.0)
     end = neck_yaml((0.07, 0.1, 0.11), head=-10.0)
-    state = stack_equilibrium_at(start, np.array([
+    _, got, system, ref = tracked_and_reference(start, end, [
         3.141591855983661, 3.1415923382572406, 3.913377605813872, 5.5113995181208715,
-        4.2023520836288535, 5.2224255897396255, 1394346.3359335014, 0.45704861267728625]))
-    got = track_stack(start, end, state)
-    system = NeckSystem(start.modules, end.modules)
-    ref = quasi_static_path(system, np.ravel(state.theta))
+        4.2023520836288535, 5.2224255897396255, 1394346.3359335014, 0.45704861267728625])
     assert_same_neck_path(system, got, ref)
     for jump in got.jumps:
         landed = jump.landing_stack or jump.stack
@@ -980,11 +983,8 @@ def test_neck_buckled_back_onto_its_symmetric_branch_by_a_hair_is_no_jump():
     (``passage_radius``) is no move, not a jump."""
     start = neck_yaml((0.07, 0.1, 0.13999999999998752), head=-5.0)
     end = neck_yaml((0.12, 0.1, 0.09), head=-5.0)
-    state = stack_equilibrium_at(start, np.array([
+    _, got, system, ref = tracked_and_reference(start, end, [
         -0.7708227628112966, 3.9382108329533545, -0.1266442604532281, 3.151032663923412,
-        -0.42886813786491224, 3.3427708483352045, -1.673811489870367, -1.8761728389807621]))
-    got = track_stack(start, end, state)
-    system = NeckSystem(start.modules, end.modules)
-    ref = quasi_static_path(system, np.ravel(state.theta))
+        -0.42886813786491224, 3.3427708483352045, -1.673811489870367, -1.8761728389807621])
     assert ref.jumps == []
     assert_same_neck_path(system, got, ref)

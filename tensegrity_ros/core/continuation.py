@@ -681,7 +681,7 @@ class _Tracker:
         z = predicted.copy()
         matrix = np.empty((n + 1, n + 1))
         matrix[n] = direction
-        previous = applied = math.inf
+        previous, applied = math.inf, None
         for _ in range(self.settings.newton_iterations):
             y, s = z[:n], z[n]
             matrix[:n, :n] = problem.jacobian(y, s)
@@ -694,15 +694,15 @@ class _Tracker:
             size = _inf_norm(delta)
             if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
                 break
-            z, previous = z - delta, size
-            applied = self.step_norm(delta[:n])
+            z, previous, applied = z - delta, size, delta
             if size <= 1e-14 * (1.0 + _inf_norm(z)):
                 break
         y, s = z[:n], float(z[n])
         # the extended system is regular at folds, so it converges to rounding level;
         # where it does not (a singular linkage limit), the step is refused
         miss = z - predicted
-        if (not self.residual_ok(y, s, 1e-3) or not applied <= ARC_RESOLUTION
+        if (applied is None or not self.step_norm(applied[:n]) <= ARC_RESOLUTION
+                or not self.residual_ok(y, s, 1e-3)
                 or _inf_norm(miss[:n] if any_s else miss) > 0.5 * h + self.settings.same_state_tol):
             return None
         if not self.energy_consistent(y0, s0, y, s):

@@ -187,7 +187,8 @@ class _Topology:
         self.mobility = rods[_FIXED:].T @ rods[_FIXED:]   # moving nodes shared by two rods
         self.identity = np.eye(self.n_rods)
         # Q of a QR of the constraint Jacobian^T applied to these: a null basis (_null_basis)
-        self.trailing_columns = _trailing_columns(self.n_rods, self.n_chords)
+        self.trailing_columns = np.eye(self.n_rods)[:, self.n_chords:]
+        self.trailing_columns.flags.writeable = False
         # K = E^T diag(w) E as one product: (w @ element_outer).reshape(2N, 2N)
         self.element_outer = np.einsum('er,eq->erq', self.element_rods,
                                        self.element_rods).reshape(len(ends), -1)
@@ -303,23 +304,13 @@ def _topology(n):
     return _Topology(n)
 
 
-@functools.lru_cache(maxsize=32)
-def _trailing_columns(n, m):
-    """The last n - m columns of the n x n identity (read only)."""
-    columns = np.eye(n)[:, m:]
-    columns.flags.writeable = False
-    return columns
-
-
-def _null_basis(jc):
-    """A basis (columns) of the null space of ``jc`` (m x n, full row rank, m < n): the
-    trailing columns of the Q of a QR of jc^T, Q applied to them by LAPACK directly (no
-    per-call checks, Q itself never formed)."""
-    m, n = jc.shape
-    if m == 0:
-        return np.eye(n)
+def _null_basis(jc, trailing_columns):
+    """A basis (columns) of the null space of ``jc`` (m x n, full row rank, 0 < m < n):
+    the ``trailing_columns`` (the last n - m of the n x n identity: the topology's) of the
+    Q of a QR of jc^T, Q applied to them by LAPACK directly (no per-call checks, Q itself
+    never formed)."""
     qr, tau, _, _ = _dgeqrf(jc.T)
-    z, _, info = _dormqr('L', 'N', qr, tau, _trailing_columns(n, m), n)
+    z, _, _ = _dormqr('L', 'N', qr, tau, trailing_columns, jc.shape[1])
     return z
 
 
@@ -751,30 +742,25 @@ class StackPath:
         return self._reduced_at(self.point(y, s))
 
     def _reduced_at(self, p):
-        if not self.topology.n_chords:
-            return p.hessian(self), p.metric(self), self.topology.identity, p
-        z = _null_basis(p.constraint_jacobian(self))
+        top = self.topology
+        if not top.n_chords:
+            return p.hessian(self), p.metric(self), top.identity, p
+        p.products(self)            # the Gram matrix and constraint Jacobian in one product
+        z = _null_basis(p.constraint_jacobian(self), top.trailing_columns)
         (hessian, metric), zt = p.pair(self), z.T
-        return np.dot(np.dot(zt, hessian), z), np.dot(np.dot(zt, metric), z), z, p
+        return zt.dot(hessian).dot(z), zt.dot(metric).dot(z), z, p
 
     def eigenvalues(self, y, s):
         return self.eigenvalues_at(self.point(y, s))
 
     def eigenvalues_at(self, p):
-        top = self.topology
-        if top.n_chords:
-            # :meth:`_reduced_at` inlined (one per command: its calls and tuples are ~1 us)
-            p.products(self)
-            qr, tau, _, _ = _dgeqrf(p.constraint_jacobian(self).T)
-            z, _, _ = _dormqr('L', 'N', qr, tau, top.trailing_columns, top.n_rods)
-            hessian, metric = p.pair(self)
-            zt = z.T
+        a, b, _, _ = self._reduced_at(p)
+        if self.topology.n_chords:
             # fresh C-ordered symmetric reductions: their transposes are Fortran-ordered
             # views that LAPACK may overwrite, so it copies nothing (half the call)
-            values, _, info = _dsygv(zt.dot(hessian).dot(z).T, zt.dot(metric).dot(z).T, 1,
-                                     'N', overwrite_a=1, overwrite_b=1)
+            values, _, info = _dsygv(a.T, b.T, 1, 'N', overwrite_a=1, overwrite_b=1)
         else:                                   # the point's own matrices: not to be overwritten
-            values, _, info = _dsygv(p.hessian(self), p.metric(self), 1, 'N')
+            values, _, info = _dsygv(a, b, 1, 'N')
         if info != 0:
             raise np.linalg.LinAlgError(f'reduced eigenproblem failed (dsygv info={info})')
         return values
@@ -838,7 +824,7 @@ class StackPath:
         if not self.topology.n_chords:
             return -np.linalg.solve(metric, gradient)
         jc, mobility_jc, gram, rate = self._damped_constraints(p)
-        z = _null_basis(jc)
+        z = _null_basis(jc, self.topology.trailing_columns)
         tangential = z @ np.linalg.solve(z.T @ metric @ z, z.T @ gradient)
         pull = mobility_jc @ np.linalg.solve(gram, rate * p.constraints(self))
         return np.concatenate([-tangential - pull, np.zeros_like(p.mu)])

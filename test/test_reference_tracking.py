@@ -941,6 +941,22 @@ def test_neck_jump_from_a_flat_module_steps_off_to_a_state_nearby():
         assert landing < departure, (jump.s, landing, departure)
 
 
+def test_neck_landing_past_a_module_near_flat_is_the_rigid_mechanism_s():
+    """bench_round_commands seed 0 stream 11, head load -10 -> 0.5 N on module 0 at
+    (-pi/2, -pi/2) (rho = 0.06, its rods parallel): at s = 0.99907929 both rods swing
+    together, on a branch where module 0 passes near flat (the Gram matrix of the chord
+    gradients 7e-6).  The landing flow, whose chords give there (damped), crossed onto
+    (pi/3, 2 pi/3), 2.2 J down; the rigid mechanism's flow (and the reference's) rests
+    at (pi/2, pi/2), 5e-6 J below the departure, and the command ends there."""
+    start = neck_yaml((0.06, 0.06, 0.14), head=-10.0)
+    end = neck_yaml((0.06, 0.06, 0.14), head=0.5)
+    _, got, system, ref = tracked_and_reference(start, end, [
+        4.712388980384691, 4.712388980384691, 3.727278197046944, 5.697499763722435,
+        3.6124771164794316, 5.812300844289948, -0.5288383146102059, -0.8854996945724267])
+    assert_same_neck_path(system, got, ref)
+    assert angle_distance(np.ravel(got.final.theta)[:2], [np.pi / 2, np.pi / 2]) < 1e-6
+
+
 def test_neck_fold_next_to_a_flat_module_is_not_placed_on_unresolved_points():
     """bench_round_commands seed 1 stream 12, head load -2 -> -10 N from a state a
     linkage-limit stop left (module 0 flat, chord force 7e7 N, lambda_max 4.5e8).

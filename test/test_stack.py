@@ -345,3 +345,22 @@ def test_a_projection_says_whether_it_reached_the_chords(chord, reachable):
     assert path.on_constraints(projected, 0.0) == reachable
     miss = abs(float(path.point(projected, 0.0).constraints(path)[0]))
     assert (miss < 1e-12) if reachable else (miss > 0.05), miss
+
+
+@pytest.mark.parametrize('chord, damped', [(2.0, False), (2.499, False), (2.4999, True)])
+def test_the_elastic_flow_says_where_its_chords_give(chord, damped):
+    """Module 0 (rho 0.5, rods 1 m) under a top chord of 2.0, 2.499 or 2.4999 m (of the
+    2.5 m it reaches flat): only the last is near enough flat (Gram matrix of the chord
+    gradient 1.1e-3, below _DAMPING_ONSET) for :meth:`descent` to damp its projection, and
+    ``damped`` says so.  Where it does not, the elastic flow is the rigid one; where it
+    does, they part (a landing then lets the rigid flow decide)."""
+    stack = Stack((ModuleParams.paper(0.5), ModuleParams.paper(chord)))
+    path = StackPath(stack, stack)
+    y = np.zeros(path.size)
+    y[:4] = [math.pi - 0.1, 0.1, 0.3, 0.2]
+    y = path.project(y, 0.0)
+    assert path.damped(y, 0.0) == damped
+    apart = np.max(np.abs(path.descent(y, 0.0) - path.rigid_descent(y, 0.0)))
+    assert (apart > 1.0) if damped else (apart < 1e-12), apart
+    one = Stack((ModuleParams.paper(0.5),))
+    assert not StackPath(one, one).damped(np.array([0.3, 0.2]), 0.0)

@@ -1376,9 +1376,11 @@ class _Tracker:
         the landing hardly moves, else by tracking it back (a soft landing valley, e.g.
         a neck of k = 10 N/m, moves its minimum by up to 0.8 rad over that offset).
         Tracking goes on from the frozen landing.  Only where the landing minimum does
-        not persist back to s* (it is born past s*, or it buckles or times out on the
-        way back) is it reported at its own s_land, and the jump says so
-        (``Event.landing_s != Event.s``)."""
+        not persist back to s* is it reported elsewhere, and the jump says so
+        (``Event.landing_s != Event.s``): where it is born past s* (or times out on the
+        way back), at the s nearest s* it was followed to (a minimum born at s* itself,
+        degenerate there: bench_round_commands seed 0, stream 11, head load 0.5 N,
+        1e-15 in s short of it); where it buckles on the way, at its own s_land."""
         back = self.newton(landing, s_star)
         if (back is not None and self.separation(back, landing) < self.settings.max_state_step
                 and self.definite(self.eigenvalues(back, s_star))):
@@ -1386,8 +1388,10 @@ class _Tracker:
         follower = _Tracker(_Segment(self.problem, s_land, s_star), self.settings)
         follower.stop_at_events = True      # a critical point on the way: not that minimum
         followed = follower.run(landing)
-        if followed.status != 'ok' or followed.events or followed.passages:
+        if followed.events or followed.passages:
             return landing, s_land
+        if followed.status != 'ok':         # verified as near s* as it was followed
+            return followed.state, s_land + followed.s * (s_star - s_land)
         polished = self.newton(followed.state, s_star)     # the segment ends at s* to rounding
         if (polished is not None
                 and self.separation(polished, followed.state) <= self.settings.same_state_tol
@@ -1568,8 +1572,12 @@ class _Tracker:
         the flow starts over from the same state by the problem's optional
         ``rigid_descent``, which rests only on equilibria of the model itself
         (``rigid_first``: from the start, as from a flat crossing's half-branch).
+        Where the flow came to rest on a minimum but was damped on the way (the
+        problem's optional ``damped``: it passed a module near flat as elastic
+        chords), the rigid flow from the same start decides, where it rests on one.
         """
         problem = self.problem
+        start = y
         flow = [problem.descent]
         # (not in a tracker that stops at events: its landings, at a critical point reached
         # to rounding, are never kept but where the minimum goes on; there the rigid flows
@@ -1585,6 +1593,13 @@ class _Tracker:
         # most a landing took there)
         rigid_budget = self.settings.flow_evaluations // 8
         budget = [rigid_budget if flow[0] is rigid else self.settings.flow_evaluations]
+        damped_at = getattr(problem, 'damped', None) if rigid is not None else None
+        was_damped = [False]
+
+        def watch(v):                   # at each solver step of the elastic flow
+            if not was_damped[0] and damped_at(v, s):
+                was_damped[0] = True
+            return False
 
         def velocity(_t, v):
             budget[0] -= 1
@@ -1600,7 +1615,8 @@ class _Tracker:
                 # reference's: there its way (and its rest) turns on ~1e-7 of it (it rested
                 # at the crossing of two branches, or crossed onto the other one)
                 rest = (self.rigid_flow_to_rest(velocity, y, s, tol) if flow[0] is rigid
-                        else self.flow_to_rest(velocity, y, tol))
+                        else self.flow_to_rest(velocity, y, tol,
+                                               stop=None if damped_at is None else watch))
             except _FlowBudgetExceeded:
                 return None
             if rest is None:
@@ -1618,11 +1634,28 @@ class _Tracker:
                 continue
             if (self.definite(self.eigenvalues(polished, s))
                     and problem.energy(polished, s) <= problem.energy(y, s) + 1e-12 * self.scale):
+                if was_damped[0] and flow[0] is not rigid:
+                    rest = self.rigid_rest(start, s)
+                    return polished if rest is None else rest
                 return None if self.stalled_at_linkage_limit(flow[0] is rigid, polished, s) \
                     else polished
             _, modes = problem.stability(polished, s)      # a saddle: push off
             y = problem.project(polished + self.step_off_vector(modes[:, 0]), s)
         return None
+
+    def rigid_rest(self, start, s):
+        """The rigid flow's minimum from ``start``, where the elastic flow from there
+        was damped on its way to a minimum (its chords gave where a module passed near
+        flat, so it may have crossed onto a branch the rigid mechanism does not reach:
+        bench_round_commands seed 0, stream 11, head load 0.5 N, a module's flat
+        neighbour swung through to (pi/3, 2 pi/3), 2.2 J below where the rigid flow and
+        the reference rest).  None where it rests on none (stalled at a flat module, out
+        of budget): the elastic flow's minimum stands."""
+        alternatives = list(self.crossing_alternatives)
+        rest = self.slide(start, s, rigid_first=True)
+        if rest is None:
+            self.crossing_alternatives = alternatives
+        return rest
 
     def stalled_at_linkage_limit(self, rigid, y, s):
         """Whether a rigid flow's rest ``y`` is at a linkage limit (a module flat, at the
@@ -1772,6 +1805,8 @@ class _Segment:
             self.on_constraints = lambda y, t: problem.on_constraints(y, self.at(t))
         if hasattr(problem, 'rigid_descent'):
             self.rigid_descent = lambda y, t: problem.rigid_descent(y, self.at(t))
+        if hasattr(problem, 'damped'):
+            self.damped = lambda y, t: problem.damped(y, self.at(t))
         if hasattr(problem, 'eigenvalues'):
             self.eigenvalues = lambda y, t: problem.eigenvalues(y, self.at(t))
 

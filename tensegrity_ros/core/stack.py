@@ -807,6 +807,18 @@ class StackPath:
             gram = gram + _DAMPING * (1.0 - smallest / _DAMPING_ONSET) ** 2 * np.eye(len(jc))
         return jc, mobility_jc, gram, float(np.max(p.values.k)) * 2.0
 
+    def damped(self, y, s):
+        """Whether :meth:`descent` damps its projection at ``y`` (a module so near flat
+        that the Gram matrix of the chord gradients has an eigenvalue below
+        ``_DAMPING_ONSET``): there it flows as a neck of slightly elastic chords, not as
+        the rigid-chord model, and may pass a module through flat where the rigid
+        mechanism does not (see :meth:`rigid_descent`)."""
+        if not self.topology.n_chords:
+            return False
+        jc = self.point(y, s).constraint_jacobian(self)
+        gram = jc @ np.linalg.solve(self.point(y, s).metric(self), jc.T)
+        return bool(np.linalg.eigvalsh(gram)[0] < _DAMPING_ONSET)
+
     def rigid_descent(self, y, s):
         """:meth:`descent` with the force projected exactly (through a null basis of the
         constraints, not the damped Gram inverse), so that it rests only where the

@@ -957,6 +957,34 @@ def test_neck_landing_past_a_module_near_flat_is_the_rigid_mechanism_s():
     assert angle_distance(np.ravel(got.final.theta)[:2], [np.pi / 2, np.pi / 2]) < 1e-6
 
 
+def test_neck_jump_off_a_mirror_symmetric_state_says_its_mirror_image_lands_as_well():
+    """bench_round_commands seed 3 stream 10, ``joint_commands {0: 0.15, 1: 0.13, 2: 0.05}``
+    from a linkage-limit stop: module 0 flat, the neck and its state mirror-symmetric.
+    At s = 1e-13 it folds onto a state that is not its own mirror image; which of the
+    two it lands on turned on the departure's last bits (a projection fix swapped it),
+    and the reference's flows do not rest there (NoRest).  The jump is flagged
+    ambiguous, and the landing and its mirror image are both stable equilibria of the
+    reference model at the jump's parameters, of one energy."""
+    start = neck_yaml((0.11399999999999863, 0.1259999999999968, 0.08400000000000092),
+                      head=-0.5)
+    end = neck_yaml((0.15, 0.13, 0.05), head=-0.5)
+    held = stack_equilibrium_at(start, np.array([
+        1.9468774514988108e-07, 3.141592458902048, 0.5053605102841767, 2.636232143305617,
+        0.7836590917406061, 2.3579335618491872, 134571.3419706088, 1.6045924832488137]))
+    got = track_stack(start, end, held)
+    assert got.status == 'ok', got.message
+    jump = got.jumps[0]
+    assert jump.ambiguous
+    system = NeckSystem((jump.landing_stack or jump.stack).modules)
+    landing = np.ravel(jump.to_theta)
+    image = landing.reshape(-1, 2)[:, ::-1].ravel()
+    assert angle_distance(landing, image) > 1e-3
+    for theta in (landing, image):
+        rest = system.certified_rest(theta, 1.0)
+        assert rest is not None and angle_distance(rest, theta) < 1e-6, theta
+    assert system.energy(image, 1.0) == pytest.approx(system.energy(landing, 1.0), rel=1e-12)
+
+
 def test_neck_fold_next_to_a_flat_module_is_not_placed_on_unresolved_points():
     """bench_round_commands seed 1 stream 12, head load -2 -> -10 N from a state a
     linkage-limit stop left (module 0 flat, chord force 7e7 N, lambda_max 4.5e8).

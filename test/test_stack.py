@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from tensegrity_ros.core import BRANCH_POINT, FOLD, ModuleParams, equilibria, settle, track_module
+from tensegrity_ros.core import (BRANCH_POINT, FOLD, ModuleParams, ModulePath, equilibria, settle,
+                                  track_module)
 from tensegrity_ros.core.stack import (Stack, StackJump, StackPassage, StackPath, settle_stack,
                                        stack_equilibria, stack_equilibrium_at, track_stack)
 
@@ -364,3 +365,67 @@ def test_the_elastic_flow_says_where_its_chords_give(chord, damped):
     assert (apart > 1.0) if damped else (apart < 1e-12), apart
     one = Stack((ModuleParams.paper(0.5),))
     assert not StackPath(one, one).damped(np.array([0.3, 0.2]), 0.0)
+
+
+def symmetric_module(rng):
+    """A module that is its own mirror image, with random lengths, springs and loads."""
+    length, k, fy, mass = rng.uniform(0.8, 1.2), rng.uniform(50, 150), rng.uniform(-3, 3), \
+        rng.uniform(0, 0.2)
+    fx = rng.uniform(-1, 1)
+    return ModuleParams(rho=rng.uniform(0.5, 0.9), L1=length, L2=length, ka=k, kb=k,
+                        kc=rng.uniform(50, 150), f3x=fx, f3y=fy, f4x=-fx, f4y=fy,
+                        m1=mass, m2=mass)
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_the_mirror_image_of_an_equilibrium_is_one_of_a_mirror_symmetric_stack(seed):
+    """The mirror image (each module's (t1, t2) -> (t2, t1)) of a minimum of a
+    mirror-symmetric stack is a minimum of one energy and the same stiffnesses; the
+    image the path builds in rod angles is the one the local angles give.  A stack with
+    one asymmetric parameter has no mirror (None), nor has a module path."""
+    rng = np.random.default_rng(seed)
+    n = 1 + seed % 3
+    stack = Stack(tuple(symmetric_module(rng) for _ in range(n)))
+    path = StackPath(stack, stack)
+    found = settle_stack(stack, rng.uniform(0.3, 1.2, (n, 2)))
+    image = path.mirror(found.state, 0.0)
+    from_angles = path.state_from_angles(path.angles(found.state, 0.0)[:, ::-1], 0.0)
+    rods = path.topology.n_rods
+    assert np.max(np.abs(path.canonical(image - from_angles)[:rods])) < 1e-12
+    assert np.max(np.abs(path.residual(image, 0.0))) < 1e-9 * path.f_ref
+    assert path.energy(image, 0.0) == pytest.approx(path.energy(found.state, 0.0), rel=1e-12)
+    assert np.allclose(path.eigenvalues(image, 0.0), found.eigenvalues, rtol=1e-9)
+    for name, value in (('L2', 1.3), ('kb', 99.0), ('f4x', 0.5), ('m2', 0.3)):
+        other = stack.with_module(n - 1, **{name: value})
+        assert StackPath(other, other).mirror(found.state, 0.0) is None
+    module = stack.modules[0]
+    assert list(ModulePath(module, module).mirror([0.1, 0.7], 0.0)) == [0.7, 0.1]
+    assert ModulePath(module, module.with_(kb=module.kb + 1.0)).mirror([0.1, 0.7], 0.5) is None
+
+
+def test_a_rigid_flow_stepping_over_a_flat_crossing_stops_at_it():
+    """A flow step whose ends lie on both sides of a module's flat crossing (both rods
+    turned through the base line between them) is searched on its dense output: the
+    flattest state in it is found, flatter than either end."""
+    from tensegrity_ros.core.continuation import _Tracker
+    stack = Stack((ModuleParams.paper(0.6), ModuleParams.paper(0.6)))
+    path = StackPath(stack, stack)
+    a, b = np.zeros(path.size), np.zeros(path.size)
+    a[:4] = [0.3, math.pi - 0.3, 0.3, 2.8]
+    b[:4] = [-0.3, math.pi + 0.3, 0.3, 2.8]
+    assert path.turned_through_base(a, b, 0.0)
+    assert not path.turned_through_base(a, a, 0.0)
+
+    class Step:                 # a straight step from a to b, as an LSODA dense output
+        t_old, t = 0.0, 1.0
+
+        def __call__(self, t):
+            return a + t * (b - a)
+
+    class Solver:
+        def dense_output(self):
+            return Step()
+
+    flattest = _Tracker.flattest_in_step(Solver(), 0.0, path.flatness)
+    assert path.flatness(flattest, 0.0) < 1e-6 * min(path.flatness(a, 0.0), path.flatness(b, 0.0))
+    assert abs(flattest[0]) < 1e-6

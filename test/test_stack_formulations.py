@@ -100,8 +100,12 @@ def test_jumps_agree_with_node_coordinates(start, end, theta):
         landed = continuation.track(there, event.landing)
         assert landed.status == 'ok' and not landed.events
         landing = there.angles(landed.state, 1.0)
-        # of equal energy: the jump is flagged ambiguous by both, and either is the answer
-        assert jump.ambiguous == event.ambiguous
+        # of equal energy: the jump is flagged ambiguous by both, and either is the answer;
+        # ours also flags what the node-coordinate problem has no methods to see (the
+        # landing's mirror image on a mirror-symmetric neck, a flat crossing the landing
+        # flow passed: StackPath.mirror, crossing_ways), as the independent reference
+        # does (test_reference_tracking)
+        assert jump.ambiguous or not event.ambiguous
         if jump.ambiguous and wrapped(jump.to_theta, orient(landing)) > 1e-10:
             mirrored = not mirrored
         assert wrapped(jump.to_theta, orient(landing)) < 1e-10

@@ -40,6 +40,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 from scipy.integrate import LSODA
+from scipy.optimize import minimize_scalar
 
 from .bounded_work import Budget, checkpoint
 from .tolerances import BRANCH_POINT_CERTIFIED, DEFINITENESS_TOL, verified_minimum
@@ -1089,6 +1090,7 @@ class _Tracker:
         landing, ambiguous, s_land = self.landing_state(kind, s_star, y_star, s_land, s_end,
                                                         reach)
         event = None if self.continuous(kind, s_star, y_star, s_land, landing) else kind
+        ambiguous = ambiguous or self.mirror_lands_too(y_star, landing, s_land)
         if s_land > s_end:
             back = _Tracker(_Segment(problem, s_land, s_end), self.settings).run(landing)
             if back.status != 'ok' or back.events:
@@ -1535,6 +1537,19 @@ class _Tracker:
                 return True
         return False
 
+    def mirror_lands_too(self, y_star, landing, s):
+        """Whether the landing's mirror image is as good a landing: the problem is
+        mirror-symmetric at s (its optional ``mirror``), the departure its own mirror
+        image (to ARC_RESOLUTION) and the landing not (by more than 1e-6).  Nothing in
+        the model then chooses between the two; rounding does (bench_round_commands
+        seed 3, streams 1, 10 and 19: folds off a flat module of a mirror-symmetric
+        neck, the lower side of the critical mode landing on one image or the other as
+        the departure's last bits went)."""
+        mirror = getattr(self.problem, 'mirror', None)
+        image = None if mirror is None else mirror(y_star, s)
+        return (image is not None and self.separation(image, y_star) <= ARC_RESOLUTION
+                and self.separation(mirror(landing, s), landing) > 1e-6)
+
     def separation(self, a, b):
         """Distance of two states (weighted), with angles compared modulo 2 pi."""
         return self.step_norm(self.canonical(a - b))
@@ -1596,10 +1611,9 @@ class _Tracker:
         damped_at = getattr(problem, 'damped', None) if rigid is not None else None
         was_damped = [False]
 
-        def watch(v):                   # at each solver step of the elastic flow
-            if not was_damped[0] and damped_at(v, s):
+        def watch(solver):              # at each solver step of the elastic flow
+            if not was_damped[0] and damped_at(solver.y, s):
                 was_damped[0] = True
-            return False
 
         def velocity(_t, v):
             budget[0] -= 1
@@ -1680,16 +1694,20 @@ class _Tracker:
         return all(e1 <= e0 + slack for e0, e1 in zip(energies, energies[1:]))
 
     def flow_to_rest(self, velocity, y, tol, rtol=1e-7, stop=None):
-        """Integrate dy/dt = velocity until |velocity| <= tol (or ``stop(y)``); ``None``
-        if the solver fails."""
+        """Integrate dy/dt = velocity until |velocity| <= tol, or until ``stop(solver)``
+        (called after each step) returns a state, which is then returned; ``None`` if
+        the solver fails."""
         with np.errstate(all='ignore'):
             solver = LSODA(velocity, 0.0, y, 1e7 / self.scale, rtol=rtol, atol=1e-3 * rtol)
             while solver.status == 'running':
                 checkpoint()            # between solver steps (and inside: velocity)
                 solver.step()
-                if _inf_norm(velocity(solver.t, solver.y)) <= tol or (
-                        stop is not None and stop(solver.y)):
+                if _inf_norm(velocity(solver.t, solver.y)) <= tol:
                     return solver.y
+                if stop is not None:
+                    stopped = stop(solver)
+                    if stopped is not None:
+                        return stopped
         return solver.y if solver.status == 'finished' else None
 
     def rigid_flow_to_rest(self, velocity, y, s, tol):
@@ -1710,7 +1728,7 @@ class _Tracker:
         for _ in range(MAX_CROSSING_LEGS):
             level = min(CROSSING_APPROACH, 0.1 * flatness(y, s))
             rest = self.flow_to_rest(velocity, y, tol, 1e-10,
-                                     stop=lambda v: flatness(v, s) < level)
+                                     stop=self.crossing_stop(y, s, flatness, level))
             if rest is None or flatness(rest, s) >= level:
                 return rest
             onward = self.through_crossing(rest, s)
@@ -1718,6 +1736,42 @@ class _Tracker:
                 return None
             y = rest if onward is None else onward
         return self.flow_to_rest(velocity, y, tol, 1e-10)
+
+    def crossing_stop(self, y, s, flatness, level):
+        """The ``stop`` of a rigid flow's leg from ``y``: the first state it reaches
+        ``level`` flat at, after a step or inside one.  A step over a module's flat
+        crossing (both its rods turned through its base line, the problem's optional
+        ``turned_through_base``) is searched on the step's dense output, as the
+        reference's legs are: without, one of two mirror-image flows passed its crossing
+        within a step and the other stopped at its own (the upright N = 2 paper neck's
+        branch point under a head load, test_stack_formulations)."""
+        turned = getattr(self.problem, 'turned_through_base', None)
+        previous = [y]
+
+        def stop(solver):
+            v = solver.y
+            if flatness(v, s) < level:
+                return v
+            if turned is not None and turned(previous[0], v, s):
+                flattest = self.flattest_in_step(solver, s, flatness)
+                if flatness(flattest, s) < level:
+                    return flattest
+            previous[0] = v
+            return None
+        return stop
+
+    @staticmethod
+    def flattest_in_step(solver, s, flatness, samples=32):
+        """The flattest state of the solver's last step, on its dense output: sampled,
+        then refined by a bounded scalar search next to the flattest sample."""
+        dense = solver.dense_output()
+        times = np.linspace(dense.t_old, dense.t, samples + 1)
+        values = [flatness(dense(t), s) for t in times]
+        k = int(np.argmin(values))
+        low, high = times[max(k - 1, 0)], times[min(k + 1, samples)]
+        found = minimize_scalar(lambda t: flatness(dense(t), s), bounds=(low, high),
+                                method='bounded', options={'xatol': 1e-12 * abs(high - low)})
+        return dense(found.x) if found.fun < values[k] else dense(times[k])
 
     def through_crossing(self, y, s):
         """The state to flow on from, where the flow reached ``y`` next to a flat
@@ -1807,6 +1861,8 @@ class _Segment:
             self.rigid_descent = lambda y, t: problem.rigid_descent(y, self.at(t))
         if hasattr(problem, 'damped'):
             self.damped = lambda y, t: problem.damped(y, self.at(t))
+        if hasattr(problem, 'mirror'):
+            self.mirror = lambda y, t: problem.mirror(y, self.at(t))
         if hasattr(problem, 'eigenvalues'):
             self.eigenvalues = lambda y, t: problem.eigenvalues(y, self.at(t))
 

@@ -122,6 +122,14 @@ def _crossing(path, y, s):
     return i, flat, crossing, values, vectors
 
 
+def turned_through_base(path, a, b, s):
+    """Whether a module with a chord above turned both its rods through its base line
+    from state ``a`` to ``b`` (the sines of both its local angles changed sign): a flow
+    step that did so may have passed its flat crossing between the two states."""
+    before, after = np.sin(path.angles(a, s)), np.sin(path.angles(b, s))
+    return bool(np.any(np.all(before * after < 0.0, axis=1)[:-1]))
+
+
 def rounding(path, y, s):
     """(distance, radius, exact) of ``y`` and the flat crossing next to it, or None if
     ``y`` is at no crossing.  ``distance``: rad, the larger of module i's two rod angles

@@ -31,6 +31,17 @@ MAX_MAGNITUDE = 1e50
 MIN_MAGNITUDE = 1e-50
 
 
+def mirror_symmetric(parameters):
+    """Whether modules with these parameter vectors (rows in PARAMETER_NAMES order) are
+    each their own mirror image (L1 = L2, ka = kb, m1 = m2, f3y = f4y, f3x = -f4x,
+    exactly): then (t1, t2) -> (t2, t1) in every module maps equilibria to equilibria
+    of the same energy and stability (the mechanism reflected about the perpendicular
+    bisector of its base)."""
+    L1, L2, ka, kb, _, f3x, f3y, f4x, f4y, m1, m2 = np.reshape(parameters, (-1, 12))[:, 1:].T
+    return bool(np.all(L1 == L2) and np.all(ka == kb) and np.all(m1 == m2)
+                and np.all(f3y == f4y) and np.all(f3x == -f4x))
+
+
 class InvalidParameterError(ValueError):
     """A parameter is non-finite or outside its physical range."""
 

@@ -39,7 +39,7 @@ from scipy.optimize import root
 from . import continuation as _continuation
 from . import flat_crossing as _flat_crossing
 from .continuation import TrackerSettings
-from .module import ModuleParams, PARAMETER_NAMES, InvalidParameterError
+from .module import ModuleParams, PARAMETER_NAMES, InvalidParameterError, mirror_symmetric
 from .stack_fast_step import keep_final_point, whole_command_step
 from .tolerances import DEFINITENESS_TOL, verified_minimum
 
@@ -880,6 +880,18 @@ class StackPath:
         y[:n] = (y[:n] + math.pi) % (2.0 * math.pi) - math.pi
         return y
 
+    def mirror(self, y, s):
+        """The mirror image of ``y`` (the neck reflected about its base's perpendicular
+        bisector: each module's rods swap, (t1, t2) -> (t2, t1), so absolute rod angles
+        (phi1, phi2) -> (pi - phi2, pi - phi1); chord forces stay), or None where the
+        stack is not mirror-symmetric at s."""
+        if not mirror_symmetric(self.parameter_vector(s)):
+            return None
+        y = np.array(y, dtype=float)
+        n = self.topology.n_rods
+        y[:n] = (math.pi - y[:n].reshape(-1, 2)[:, ::-1]).ravel()
+        return y
+
     def whole_turns_removed(self, y):
         """``y`` with every rod angle beyond [-3 pi, 3 pi] brought back to [-pi, pi] by
         whole turns, the others untouched bit for bit (``y`` itself where none is beyond).
@@ -924,6 +936,11 @@ class StackPath:
         """How near the flattest module with a chord above it is to flat (its chord's
         gradient in the module's own angles over l_ref; inf for one module)."""
         return _flat_crossing.flatness(self, y, s)[1]
+
+    def turned_through_base(self, a, b, s):
+        """Whether a module with a chord above turned both rods through its base line
+        between states ``a`` and ``b`` (see :func:`.flat_crossing.turned_through_base`)."""
+        return _flat_crossing.turned_through_base(self, a, b, s)
 
     def crossing_ways(self, y, s):
         """The ways out of a module's flat crossing next to ``y`` (see

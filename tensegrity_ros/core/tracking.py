@@ -15,7 +15,7 @@ import numpy as np
 from . import continuation as _continuation
 from .continuation import TrackerSettings
 from .classification import Equilibrium, _build, _eigenvalues_2x2
-from .module import ModuleParams, PARAMETER_NAMES
+from .module import ModuleParams, PARAMETER_NAMES, mirror_symmetric
 from .tolerances import DEGENERACY_TOL, MARGIN_CERTIFIED, verified_minimum
 
 
@@ -190,6 +190,11 @@ class ModulePath:
     @staticmethod
     def canonical(y):
         return (np.asarray(y) + math.pi) % (2.0 * math.pi) - math.pi
+
+    def mirror(self, y, s):
+        """The mirror image (t2, t1) of ``y``, or None where the module is not
+        mirror-symmetric at s."""
+        return np.asarray(y)[::-1].copy() if mirror_symmetric(self.p0 + s * self.dp) else None
 
 
 def _gradient(values, t1, t2):

@@ -122,6 +122,12 @@ class PathProblem(Protocol):
     ``state_weights`` (per-component weights of the step-size norm, e.g. 1/length
     for positions and 0 for multipliers; default all ones) and ``canonical(y)``
     (a representative for comparing states, e.g. angles wrapped to [-pi, pi)).
+    Landing flows use, where given: ``rigid_descent`` (the flow of the constrained model
+    itself, where ``descent`` lets the constraints give), ``damped(y, s)`` (whether
+    ``descent`` does so at y), ``flatness``, ``turned_through_base`` and
+    ``crossing_ways`` (a linkage's crossings, see :meth:`_Tracker.rigid_flow_to_rest`)
+    and ``mirror(y, s)`` (the state's mirror image, or None where the problem has no
+    mirror symmetry at s).
     """
 
     size: int

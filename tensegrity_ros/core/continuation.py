@@ -537,7 +537,8 @@ class _Tracker:
                     return self.result(y, s, eigenvalues, events, 'failed', str(error))
             elif ds <= cfg.min_step:
                 moved = (self.through_linkage_limit(y, s, s_end)
-                         or self.end_at_rounding(y, s, s_end))
+                         or self.end_at_rounding(y, s, s_end)
+                         or self.leave_crossing(y, s, s_end))
                 if moved is None:
                     return self.result(y, s, eigenvalues, events, 'failed',
                                        self.underflow_reason(y, s, reason))
@@ -832,6 +833,32 @@ class _Tracker:
                 or self.separation(closer, y) > 0.3 * distance + self.settings.same_state_tol):
             return None
         return near, s + offset, None
+
+    def leave_crossing(self, y, s, s_end):
+        """Where the minimum came onto a module's flat crossing and goes on continuously
+        along none of its half-branches: the mechanism leaves along the steepest of those
+        it moves away on and slides to rest (the reference's rule,
+        test/reference_paths._through_change_point), a jump there: (landing, s, branch
+        point event), or ``None`` where ``y`` is at no crossing, none leads away, or the
+        flow does not rest on a minimum a move away.  (bench_round_commands seed 1,
+        streams 1 and 7: two mirror-image half-branches, of one descent rate to 1e-8;
+        the reference's branch point there, where the tracker gave up at a 'linkage
+        limit'.)"""
+        if s >= s_end or getattr(self.problem, 'crossing_ways', None) is None:
+            return None
+        self.crossing_alternatives = []
+        onward = self.through_crossing(y, s)
+        if onward is None or onward is False:
+            return None
+        alternatives = list(self.crossing_alternatives)
+        landing = self.slide(onward, s, rigid_first=True)
+        if landing is None or self.separation(landing, y) <= self.settings.passage_radius:
+            return None
+        alternatives += self.crossing_alternatives
+        ambiguous = (self.lands_elsewhere(alternatives, landing, s)
+                     or self.mirror_lands_too(y, landing, s))
+        return landing, s, Event(kind=BRANCH_POINT, s=s, state=y, landing_s=s,
+                                 landing=landing, ambiguous=ambiguous)
 
     def end_next_to_crossing(self, y, s_end):
         """The command's end where the branch coming in (``y``, within ``linkage_offset``

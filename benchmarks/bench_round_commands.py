@@ -110,15 +110,38 @@ def compared_with_reference(start, end, held, limit):
         return f'no reference: {type(error).__name__}'
     finally:
         signal.alarm(0)
-    final = np.ravel(track.final.theta)
-    mirror = final.reshape(-1, 2)[:, ::-1].ravel()
-    distance = min(angle_distance(final, ref.final), angle_distance(mirror, ref.final))
-    mine, theirs = [float(j.s) for j in track.jumps], [float(j.s) for j in ref.jumps]
-    if (distance < 1e-6 and len(mine) == len(theirs)
-            and all(abs(a - b) < 1e-6 for a, b in zip(mine, theirs))):
-        return 'agree'
-    return (f'differ: jumps at s {[round(a, 7) for a in mine]}, reference '
-            f'{[round(b, 7) for b in theirs]}; end states {distance:.2g} rad apart')
+    system = NeckSystem(start.modules, end.modules)
+    apart = lambda a, b: min(angle_distance(a, b),                         # noqa: E731
+                             angle_distance(np.reshape(a, (-1, 2))[:, ::-1].ravel(), b))
+    jumps, done = sorted(track.jumps, key=lambda j: j.s), 0
+    differ = lambda: (f'differ: jumps at s {[round(float(j.s), 7) for j in jumps]}, '  # noqa
+                      f'reference {[round(float(j.s), 7) for j in ref.jumps]}; end states '
+                      f'{apart(np.ravel(track.final.theta), ref.final):.2g} rad apart')
+    while True:     # as test_reference_tracking.assert_same_neck_path: where a jump of ours
+        again = False   # leaves by a way out the reference lists as an alternative (an
+        for theirs in ref.jumps:        # ambiguous one), the reference goes on from ours
+            if done == len(jumps) or abs(jumps[done].s - theirs.s) >= 1e-6:
+                return differ()
+            landing = np.ravel(jumps[done].to_theta)
+            done += 1
+            if apart(landing, theirs.landing) <= 1e-4:
+                continue
+            if not any(apart(landing, x) <= 1e-4 for x in theirs.alternatives):
+                return differ()
+            signal.alarm(limit)
+            try:
+                ref = quasi_static_path(system, landing, theirs.s_after)
+            except TooLong:
+                return 'no reference: over the limit (on from another way out)'
+            except Exception as error:
+                return f'no reference: {type(error).__name__} (on from another way out)'
+            finally:
+                signal.alarm(0)
+            again = True
+            break
+        if not again:
+            final = apart(np.ravel(track.final.theta), ref.final)
+            return 'agree' if done == len(jumps) and final < 1e-6 else differ()
 
 
 def stream(config, rng, count, limit, reference=False):

@@ -45,6 +45,23 @@ def assert_stable_for_the_reference(start, end, theta, s):
     assert system.is_stable_equilibrium(star, s), (theta, s)
 
 
+def assert_jump_off_a_crossing(jump, s_star, module):
+    """A jump off ``module``'s flat crossing: located at s* (where rho(i) + rho(i+1) =
+    L1 + L2) to 1e-9, from the module flat, onto a minimum of the reference model at the
+    landing's own parameters a move away, below the departure (an overdamped mechanism
+    cannot climb); ambiguous, as another half-branch out of the crossing (or the mirror
+    image) lands elsewhere."""
+    assert jump.kind == 'branch_point' and abs(jump.s - s_star) < 1e-9, (jump.s, s_star)
+    departure, landing = np.ravel(jump.from_theta), np.ravel(jump.to_theta)
+    assert angle_distance(departure[2 * module:2 * module + 2], np.zeros(2)) < 1e-5
+    landed = jump.landing_stack or jump.stack
+    assert_stable_for_the_reference(landed, landed, landing, 1.0)
+    assert angle_distance(landing, departure) > 1e-2
+    before = NeckSystem(jump.stack.modules).energy(departure, 1.0)
+    assert NeckSystem(landed.modules).energy(landing, 1.0) < before
+    assert jump.ambiguous
+
+
 def test_m0_rho_across_the_flat_module_matches_the_reference():
     """N = 3 config/neck.yaml-like neck, m0 rho 0.2 -> 1.5 (module 0 flat at rho 1.25):
     was 'step size underflow (far)' at rho 1.25."""
@@ -111,15 +128,16 @@ def test_n10_head_load_jumps_land_on_stable_equilibria():
     assert_stable_for_the_reference(end, end, got.final.theta, 0.0)
 
 
-def test_a_toggle_at_a_linkage_limit_is_a_stated_give_up():
+def test_a_toggle_at_a_flat_crossing_jumps_off_it():
     """The random N = 2 neck of the neck jump property's seed 22: module 0 is driven flat
     onto its chord (crossed, so rho0 + rho1 = L1 + L2 at s*) with loads pushing along
     the fold: the chord force grows without bound (1.7e7 N at the last verified state,
     where the loads are ~10 N) and no minimum goes on continuously (the nearest one
-    past it is 0.04 rad away and does not close in).  The rigid-chord model does not
-    say where the neck snaps to, and the reference's flow stalls there (> 900 s): the
-    tracker stops at the limit with that reason, the state a verified minimum (was
-    'step size underflow (newton)')."""
+    past it is 0.04 rad away and does not close in).  The tracker stopped there ('linkage
+    limit', a stated give-up); the reference's flow stalls there (> 900 s).  Released
+    just past the crossing, the mechanism slides off it (leave_crossing): a jump at s*,
+    onto a minimum of the reference model, ambiguous (the crossing's other half-branch
+    lands elsewhere), and the command ends on a minimum the reference verifies."""
     m0 = ModuleParams(rho=0.7029816069752837, L2=0.8896829207187873, ka=75.31350239567674,
                       kb=109.1915012560552, kc=97.56022268463681, f3x=4.876756188802016,
                       f3y=7.031361397022615, f4x=3.3696132323704453, f4y=-8.971224650494813)
@@ -130,15 +148,13 @@ def test_a_toggle_at_a_linkage_limit_is_a_stated_give_up():
     end = start.with_module(0, rho=1.3063288693672621, f3y=-2.2080569051909187) \
         .with_module(1, rho=0.5936679294565745, f4y=-8.6652768990632)
     got = track_stack(start, end, np.array([[0.8, 0.8], [-1.2, -0.9]]))
-    assert got.status == 'failed'
-    assert 'linkage limit' in got.message and 'module 0 folded flat' in got.message, got.message
+    assert got.status == 'ok', got.message
     # where: rho0(s) + rho1(s) = L1 + L2 of module 0, solved here by hand
     total = lambda stack: stack.modules[0].rho + stack.modules[1].rho      # noqa: E731
     s_star = (m0.L1 + m0.L2 - total(start)) / (total(end) - total(start))
-    s_final = (got.end.modules[0].rho - start.modules[0].rho) / (end.modules[0].rho - m0.rho)
-    assert abs(s_final - s_star) < 1e-9, (s_final, s_star)
-    assert angle_distance(got.final.theta[0], np.zeros(2)) < 1e-5
-    assert_stable_for_the_reference(start, end, got.final.theta, s_final)
+    (jump,) = got.jumps
+    assert_jump_off_a_crossing(jump, s_star, 0)
+    assert_stable_for_the_reference(start, end, got.final.theta, 1.0)
 
 
 @pytest.mark.parametrize('n', [1, 2])
@@ -387,15 +403,16 @@ def test_a_landing_by_a_module_at_its_linkage_limit_is_the_reference_paths():
     assert angle_distance(np.ravel(mine.final.theta), ref.final) < 1e-9
 
 
-def test_a_module_driven_flat_under_load_stops_at_its_linkage_limit():
+def test_a_module_driven_flat_under_load_jumps_off_its_crossing():
     """config/neck.yaml's modules, head pushed down 10 N, joint_commands {0.10, 0.15, 0.06}
     from {0.06, 0.06, 0.14} (bench_round_commands seed 0, stream 11): module 0 is driven
     flat (rho0 + rho1 = 0.24 at s = 12/13) with the load along the fold, its chord force
     growing ~1/angle.  The steps underflowed 1e-8 in s short of it, 1e-4 rad from flat
     (chord force 8.4e4 N), where the equilibrium equations are singular to rounding (the
     Jacobian's singular values 1.3e-12 .. 1e5) at a minimum (lambda_min 183 N/m): was
-    'step size underflow (newton)'.  It is the linkage limit (the model's own: no minimum
-    goes on continuously, the rigid chord does not say where the neck goes), said so."""
+    'step size underflow (newton)', then a stated linkage-limit give-up.  The mechanism
+    slides off the crossing there, onto a minimum of the reference model; the neck and
+    the departure are mirror-symmetric and the landing is not, so the jump is ambiguous."""
     start = neck_yaml((0.06, 0.06, 0.14), -10.0)
     # the simulator's state as the stream left it: its rod angles wound up to ~4e4 rad
     # (7e-12 rad apart in floating point), which is what stopped the steps that early
@@ -406,12 +423,10 @@ def test_a_module_driven_flat_under_load_stops_at_its_linkage_limit():
     assert held.stable
     end = neck_yaml((0.10, 0.15, 0.06), -10.0)
     got = track_stack(start, end, held)
-    assert got.status == 'failed'
-    assert 'linkage limit' in got.message and 'module 0 folded flat' in got.message, got.message
-    s_final = (got.end.modules[0].rho - 0.06) / 0.04
-    assert abs(s_final - 12.0 / 13.0) < 1e-7
-    assert angle_distance(got.final.theta[0], np.zeros(2)) < 1e-3
-    assert got.final.stable
+    assert got.status == 'ok', got.message
+    (jump,) = got.jumps
+    assert_jump_off_a_crossing(jump, 12.0 / 13.0, 0)
+    assert_stable_for_the_reference(end, end, got.final.theta, 1.0)
 
 
 def test_a_landing_flow_through_a_flat_crossing_takes_the_reference_paths_half_branch():
@@ -580,15 +595,16 @@ def test_a_step_ending_unresolved_next_to_a_fold_jumps_there():
     at 2.9e-5), and every step from it was refused ('step size underflow at s=0.756
     (far)').  It is a fold: the reference's fold equations {KKT = 0, det = 0} solved from
     the tracker's departure give the same s to 1e-9, and the reference's overdamped flow
-    from the departure rests on the tracker's landing.  (The command then stops at
-    module 0's linkage limit, a stated give-up.)"""
+    from the departure rests on the tracker's landing.  (The command then reaches module
+    0's flat crossing, rho0 + rho1 = 0.24 at s = 13/17, and jumps off it.)"""
     start, end = neck_yaml((0.09, 0.085, 0.09), -0.5), neck_yaml((0.14, 0.12, 0.12), -0.5)
     y = np.array([0.7536928926207191, 2.387899760969074, 0.7536928926207188, 2.387899760969074,
                   0.7079379081767014, 2.433654745413091, 1.1922131678701695, 1.0275430091216988])
     track = track_stack(start, end, y)
-    assert 'linkage limit' in track.message, track.message
-    (jump,) = track.jumps
+    assert track.status == 'ok', track.message
+    jump, off = track.jumps[:2]
     assert jump.kind == 'fold'
+    assert_jump_off_a_crossing(off, 13.0 / 17.0, 0)
     system = NeckSystem(start.modules, end.modules)
     theta = np.ravel(jump.from_theta)
     fold = critical_solve(system, theta, jump.s).x

@@ -985,6 +985,31 @@ def test_neck_jump_off_a_mirror_symmetric_state_says_its_mirror_image_lands_as_w
     assert system.energy(image, 1.0) == pytest.approx(system.energy(landing, 1.0), rel=1e-12)
 
 
+def test_neck_driven_onto_a_flat_crossing_jumps_off_it_as_the_reference_does():
+    """bench_round_commands seed 1 stream 1, ``joint_commands {0: 0.11, 1: 0.15, 2: 0.07}``
+    under a -10 N head load: at s = 0.6 module 0 reaches its flat crossing (rho0 + rho1 =
+    L1 + L2) with no minimum going on along any of its half-branches.  The tracker gave
+    up there ('linkage limit'); the reference's flow leaves it, a branch point at 0.6.
+    Released just past it, the tracker's mechanism slides off too: the jump at the
+    reference's s, onto the reference's landing or (the neck and the departure
+    mirror-symmetric) its mirror image, flagged ambiguous, and the command ends on the
+    reference's final state or its mirror image, the one the landing leads to."""
+    start = neck_yaml((0.11, 0.1, 0.14), head=-10.0)
+    end = neck_yaml((0.11, 0.15, 0.07), head=-10.0)
+    _, got, _, ref = tracked_and_reference(start, end, [
+        0.5316487920159826, 2.6612146938356633, -0.20478888011911986, 3.1736290903484274,
+        -0.6429416702528419, 3.4330096758543425, -0.7559043180404191, -2.2877353542682575])
+    assert got.status == 'ok', got.message
+    (jump,), (theirs,) = got.jumps, ref.jumps
+    assert abs(jump.s - theirs.s) <= LOCATION_TOL and jump.ambiguous
+    mirror = lambda theta: np.reshape(theta, (-1, 2))[:, ::-1].ravel()      # noqa: E731
+    landing, final = np.ravel(jump.to_theta), np.ravel(got.final.theta)
+    if angle_distance(landing, theirs.landing) > LANDING_TOL:
+        landing, final = mirror(landing), mirror(final)
+    assert angle_distance(landing, theirs.landing) <= LANDING_TOL, (landing, theirs.landing)
+    assert angle_distance(final, ref.final) <= FINAL_TOL, (final, ref.final)
+
+
 def test_neck_fold_next_to_a_flat_module_is_not_placed_on_unresolved_points():
     """bench_round_commands seed 1 stream 12, head load -2 -> -10 N from a state a
     linkage-limit stop left (module 0 flat, chord force 7e7 N, lambda_max 4.5e8).

@@ -1010,6 +1010,29 @@ def test_neck_driven_onto_a_flat_crossing_jumps_off_it_as_the_reference_does():
     assert angle_distance(final, ref.final) <= FINAL_TOL, (final, ref.final)
 
 
+def test_neck_jump_off_a_flat_crossing_takes_the_arm_its_departure_leans_to():
+    """bench_round_commands seed 0 stream 8, ``joint_commands {0: 0.13, 1: 0.12, 2: 0.15}``
+    under a -2 N head load: at s = 0.75 module 0 reaches its flat crossing with no minimum
+    going on.  The arm of the crossing the released mechanism takes turns on the
+    departure's last 1e-7 rad: the tracker's departure (8e-8, 5.8e-8 rad from flat)
+    leans to one, the reference's (6e-9, 7e-9) to the other, and each lands there.  So
+    the jump is at the reference's s, flagged ambiguous, and the reference's own flow
+    from the tracker's departure, just past s*, rests on the tracker's landing."""
+    start = neck_yaml((0.06, 0.15, 0.12), head=-2.0)
+    end = neck_yaml((0.13, 0.12, 0.15), head=-2.0)
+    _, got, system, ref = tracked_and_reference(start, end, [
+        0.5404188955165407, 2.67042425777782, -0.4024905291231467, 2.7967502097098733,
+        -1.2309806439676672, 2.5654372199784605, -1.5431639645153301, -1.2632965548112014])
+    assert got.status == 'ok', got.message
+    (jump,), (theirs,) = got.jumps, ref.jumps
+    assert abs(jump.s - theirs.s) <= LOCATION_TOL and jump.ambiguous
+    rest = flow_to_rest(system, np.ravel(jump.from_theta), theirs.s_after)
+    assert angle_distance(rest.state, np.ravel(jump.to_theta)) <= LANDING_TOL
+    on = quasi_static_path(system, np.ravel(jump.to_theta), theirs.s_after)
+    assert not on.jumps
+    assert angle_distance(np.ravel(got.final.theta), on.final) <= FINAL_TOL
+
+
 def test_neck_fold_next_to_a_flat_module_is_not_placed_on_unresolved_points():
     """bench_round_commands seed 1 stream 12, head load -2 -> -10 N from a state a
     linkage-limit stop left (module 0 flat, chord force 7e7 N, lambda_max 4.5e8).

@@ -847,7 +847,10 @@ class _Tracker:
         crossing, took another half-branch than the flow from the departure itself,
         6e-9 rad from flat, in seed 0 stream 8.)"""
         ways = getattr(self.problem, 'crossing_ways', None)
-        leaving = None if s >= s_end or ways is None else ways(y, s)
+        if (s >= s_end or ways is None or not self.moves(y, s)
+                or not self.linkage_limit(y, s)):
+            return None     # (a command to the same parameters moves nothing)
+        leaving = ways(y, s)
         if leaving is None:
             return None
         for offset in (1e-9, 1e-7, self.settings.linkage_offset):

@@ -332,17 +332,23 @@ def test_projection_survives_dependent_constraints():
     assert all(np.all(np.isfinite(e.theta)) for e in found)
 
 
+def module_under_chord(chord):
+    """Module 0 (rho 0.5, rods 1 m) under a top chord ``chord`` m long: (path, the state
+    next to both rods flat pointing away from each other, projected on the chord)."""
+    stack = Stack((ModuleParams.paper(0.5), ModuleParams.paper(chord)))
+    path = StackPath(stack, stack)
+    y = np.zeros(path.size)
+    y[:4] = [math.pi - 0.1, 0.1, 0.3, 0.2]
+    return path, path.project(y, 0.0)
+
+
 @pytest.mark.parametrize('chord, reachable', [(2.4, True), (2.499, True), (2.6, False)])
 def test_a_projection_says_whether_it_reached_the_chords(chord, reachable):
     """Module 0 (rho 0.5, rods 1 m) reaches a top chord of at most 2.5 m (both rods
     flat, pointing away from each other): a chord of 2.4 or 2.499 m is met by the
     projection of a state next to that limit; one of 2.6 m by none, and the projection
     says so (a landing does not start a flow from there)."""
-    stack = Stack((ModuleParams.paper(0.5), ModuleParams.paper(chord)))
-    path = StackPath(stack, stack)
-    y = np.zeros(path.size)
-    y[:4] = [math.pi - 0.1, 0.1, 0.3, 0.2]
-    projected = path.project(y, 0.0)
+    path, projected = module_under_chord(chord)
     assert path.on_constraints(projected, 0.0) == reachable
     miss = abs(float(path.point(projected, 0.0).constraints(path)[0]))
     assert (miss < 1e-12) if reachable else (miss > 0.05), miss
@@ -355,11 +361,7 @@ def test_the_elastic_flow_says_where_its_chords_give(chord, damped):
     gradient 1.1e-3, below _DAMPING_ONSET) for :meth:`descent` to damp its projection, and
     ``damped`` says so.  Where it does not, the elastic flow is the rigid one; where it
     does, they part (a landing then lets the rigid flow decide)."""
-    stack = Stack((ModuleParams.paper(0.5), ModuleParams.paper(chord)))
-    path = StackPath(stack, stack)
-    y = np.zeros(path.size)
-    y[:4] = [math.pi - 0.1, 0.1, 0.3, 0.2]
-    y = path.project(y, 0.0)
+    path, y = module_under_chord(chord)
     assert path.damped(y, 0.0) == damped
     apart = np.max(np.abs(path.descent(y, 0.0) - path.rigid_descent(y, 0.0)))
     assert (apart > 1.0) if damped else (apart < 1e-12), apart

@@ -567,8 +567,7 @@ def test_reference_flow_goes_on_past_a_flat_module_at_its_linkage_limit():
     got = track_stack(start, neck.with_module(0, rho=rho), before.final)
     assert got.status == 'ok' and got.jumps == (), got.message
     mine = np.ravel(got.final.theta)
-    mirrored = mine.reshape(-1, 2)[:, ::-1].ravel()
-    assert min(angle_distance(rest.state, mine), angle_distance(rest.state, mirrored)) < 1e-6
+    assert min(angle_distance(rest.state, mine), angle_distance(rest.state, mirrored(mine))) < 1e-6
 
 
 #: config/neck.yaml's modules and a state a failed landing left them on (bench_round_commands
@@ -1018,10 +1017,9 @@ def test_neck_driven_onto_a_flat_crossing_jumps_off_it_as_the_reference_does():
     assert got.status == 'ok', got.message
     (jump,), (theirs,) = got.jumps, ref.jumps
     assert abs(jump.s - theirs.s) <= LOCATION_TOL and jump.ambiguous
-    mirror = lambda theta: np.reshape(theta, (-1, 2))[:, ::-1].ravel()      # noqa: E731
     landing, final = np.ravel(jump.to_theta), np.ravel(got.final.theta)
     if angle_distance(landing, theirs.landing) > LANDING_TOL:
-        landing, final = mirror(landing), mirror(final)
+        landing, final = mirrored(landing), mirrored(final)
     assert angle_distance(landing, theirs.landing) <= LANDING_TOL, (landing, theirs.landing)
     assert angle_distance(final, ref.final) <= FINAL_TOL, (final, ref.final)
 

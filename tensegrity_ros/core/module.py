@@ -37,7 +37,8 @@ def mirror_symmetric(parameters):
     exactly): then (t1, t2) -> (t2, t1) in every module maps equilibria to equilibria
     of the same energy and stability (the mechanism reflected about the perpendicular
     bisector of its base)."""
-    L1, L2, ka, kb, _, f3x, f3y, f4x, f4y, m1, m2 = np.reshape(parameters, (-1, 12))[:, 1:].T
+    rows = np.reshape(parameters, (-1, len(PARAMETER_NAMES))).T
+    _, L1, L2, ka, kb, _, f3x, f3y, f4x, f4y, m1, m2 = rows
     return bool(np.all(L1 == L2) and np.all(ka == kb) and np.all(m1 == m2)
                 and np.all(f3y == f4y) and np.all(f3x == -f4x))
 

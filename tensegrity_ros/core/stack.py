@@ -799,13 +799,18 @@ class StackPath:
         for the overdamped flows.  Damped (Levenberg): smooth through kinematic
         singularities of the stack, where rods fold flat onto a chord and the constraint
         rows degenerate."""
-        jc = p.constraint_jacobian(self)
-        mobility_jc = np.linalg.solve(p.metric(self), jc.T)
-        gram = jc @ mobility_jc
-        smallest = np.linalg.eigvalsh(gram)[0]
+        jc, mobility_jc, gram, smallest = self._chord_gram(p)
         if smallest < _DAMPING_ONSET:
             gram = gram + _DAMPING * (1.0 - smallest / _DAMPING_ONSET) ** 2 * np.eye(len(jc))
         return jc, mobility_jc, gram, float(np.max(p.values.k)) * 2.0
+
+    def _chord_gram(self, p):
+        """(constraint Jacobian, metric^-1 jc^T, their Gram matrix, its smallest
+        eigenvalue): whether the flows damp turns on the last."""
+        jc = p.constraint_jacobian(self)
+        mobility_jc = np.linalg.solve(p.metric(self), jc.T)
+        gram = jc @ mobility_jc
+        return jc, mobility_jc, gram, np.linalg.eigvalsh(gram)[0]
 
     def damped(self, y, s):
         """Whether :meth:`descent` damps its projection at ``y`` (a module so near flat
@@ -815,9 +820,7 @@ class StackPath:
         mechanism does not (see :meth:`rigid_descent`)."""
         if not self.topology.n_chords:
             return False
-        jc = self.point(y, s).constraint_jacobian(self)
-        gram = jc @ np.linalg.solve(self.point(y, s).metric(self), jc.T)
-        return bool(np.linalg.eigvalsh(gram)[0] < _DAMPING_ONSET)
+        return bool(self._chord_gram(self.point(y, s))[3] < _DAMPING_ONSET)
 
     def rigid_descent(self, y, s):
         """:meth:`descent` with the force projected exactly (through a null basis of the

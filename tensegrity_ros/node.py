@@ -6,10 +6,16 @@ Simulator` (one module or a neck, one code path, tested without ROS).  This node
 
 * parameters -> the simulator's configuration (:mod:`tensegrity_ros.node_parameters`);
 * messages -> simulator calls (``<m>/rho_cmd``, ``<m>/force_a3/a4``, ``joint_commands``,
-  runtime parameter sets, the ``reset`` service, the timer for speed-limited motion);
-* the calls' outcomes -> rejections counted in ``/diagnostics``, ``jumps`` messages, logs;
-  the simulator's state -> ``joint_states``, ``equilibrium``, ``stable``, ``head_pose``,
-  ``markers`` (message builders: :mod:`tensegrity_ros.ros_conversions`).
+  ``joint_trajectory`` through the core's :class:`~tensegrity_ros.core.trajectory.
+  TrajectoryPlayer`, runtime parameter sets, the ``~/reset`` service, the timer);
+* the calls' outcomes -> rejections counted in ``/diagnostics``, ``~/jumps`` and
+  ``~/motion`` messages, logs; the simulator's state -> ``joint_states``, ``~/equilibrium``,
+  ``~/stable``, ``~/head_pose``, ``~/markers``, ``/tf`` and the force parameters (message
+  builders: :mod:`tensegrity_ros.ros_conversions`).
+
+The node's own outputs and its service are private (``~/``: under the node's name), so
+that two tools in one graph cannot clash; the command topics and ``joint_states`` are
+relative (namespaces and remapping work for all of them).
 
 Run:  ``python -m tensegrity_ros.node --ros-args --params-file config/default.yaml``
 """
@@ -47,6 +53,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64
 from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from tensegrity_ros import node_parameters as params
@@ -58,8 +65,15 @@ from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBa
                                                       force_key, target_key)
 from tensegrity_ros.core.events import Deferred, Jump, JumpAhead, Passage, TrackingFailure
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
+from tensegrity_ros.core.frames import chord_frames
 from tensegrity_ros.core.simulator import Simulator
 from tensegrity_ros.core.stack import Stack
+from tensegrity_ros.core.trajectory import ABORTED, MotionEnded, TrajectoryPlayer
+
+try:                            # every ROS install has it; the PyPI wheels do not
+    from tf2_msgs.msg import TFMessage
+except ImportError:
+    TFMessage = None
 
 # ---------------------------------------------------------------------------
 # QoS (documented in msg_docs/ and README.md)
@@ -90,6 +104,13 @@ HEAD_QOS = STATUS_QOS
 MARKERS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: ``motion``: latched, so a client that subscribes after sending a trajectory still
+#: sees how it ended.
+MOTION_QOS = STATUS_QOS
+#: ``/tf``: what tf2_ros's TransformBroadcaster uses (DynamicBroadcasterQoS).
+TF_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                    reliability=ReliabilityPolicy.RELIABLE,
+                    durability=DurabilityPolicy.VOLATILE)
 
 DEFAULT_NODE_NAME = 'tensegrity'
 #: Start-up check for another node of the same name: every this many seconds, this many
@@ -104,14 +125,19 @@ WARN_THROTTLE_SEC = 2.0
 REJECT_REASONS = (
     'non_finite',            # NaN or inf in a command
     'out_of_range',          # rho outside [rho_min, rho_max]
-    'size_mismatch',         # JointState: no names, or len(position) != len(name)
-    'unknown_joint',         # JointState: a name that is not a commandable <m>_rho
-    'duplicate_joint',       # JointState: the same joint twice
+    'size_mismatch',         # JointState/JointTrajectory: no names, sizes that differ
+    'unknown_joint',         # JointState/JointTrajectory: not a commandable <m>_rho
+    'duplicate_joint',       # JointState/JointTrajectory: the same joint twice
+    'trajectory_time',       # JointTrajectory: time_from_start < 0 or not increasing
     'parameter_type',        # parameter set with the wrong type
     'parameter_read_only',   # parameter set on a read-only parameter
     'parameter_undeclared',  # parameter set on a name the node does not have
+    'parameter_delete',      # parameter delete (every parameter is declared, typed)
     'parameter_value',       # parameter value refused (range, physics, limits)
 )
+#: Trajectory outcomes counted in ``/diagnostics`` (``trajectories_<state>``).
+TRAJECTORY_COUNTERS = ('trajectories_accepted', 'trajectories_succeeded',
+                       'trajectories_aborted', 'trajectories_canceled')
 
 _MODULE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 
@@ -143,6 +169,8 @@ class TensegrityNode(Node):
         self._counters.update(commands_processed=0, commands_coalesced=0,
                               callback_exceptions=0, jump_warnings=0,
                               tracking_failures=0, jumps_total=0, commands_deferred=0)
+        self._counters.update({name: 0 for name in TRAJECTORY_COUNTERS})
+        self._mirroring = False             # setting parameters to live values
         self._level_events = set()          # what happened since the last /diagnostics
         self._loggers = {}
         self._last_stable = None
@@ -153,6 +181,8 @@ class TensegrityNode(Node):
         self._dynamics = self.get_parameter('dynamics').value
         self._warn_unknown_overrides()
         self._sim = self._start_simulator()
+        self._player = TrajectoryPlayer(self._sim)
+        self._motion_status = conv.MotionStatusBuffer()
         self._published_revision = None     # simulator revision of the last statuses
         self._last_statuses = [None] * len(self._names)
         self._status_buffers = [conv.EquilibriumStatusBuffer() for _ in self._names]
@@ -176,8 +206,9 @@ class TensegrityNode(Node):
     def _create_interfaces(self):
         """Publishers, subscriptions, the reset service, the timer, parameter callbacks.
 
-        Names are relative so that namespaces and remapping work (/diagnostics is absolute
-        by ROS convention).  No per-endpoint QoS event handlers: each is a waitable the
+        The node's own outputs and its service are private (``~/``), the commands and
+        joint_states relative, so that namespaces and remapping work (/diagnostics and /tf
+        are absolute by ROS convention).  No per-endpoint QoS event handlers: each is a waitable the
         executor re-adds to its wait set before every callback (about 20 us each); QoS
         mismatches are still reported by the peer.
         """
@@ -195,17 +226,24 @@ class TensegrityNode(Node):
                 event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False)))
 
         self._js_pub = publisher(JointState, 'joint_states', STATE_QOS)
-        self._stable_pub = publisher(Bool, 'stable', STATUS_QOS)
+        self._stable_pub = publisher(Bool, '~/stable', STATUS_QOS)
         # one latched status per module, published all N together: depth N keeps every
         # module's latest for a late subscriber (N = 1: depth 1, as STATUS_QOS)
         eq_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=len(self._names),
                             reliability=ReliabilityPolicy.RELIABLE,
                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self._eq_pub = publisher(DiagnosticStatus, 'equilibrium', eq_qos)
-        self._jumps_pub = publisher(DiagnosticStatus, 'jumps', JUMPS_QOS)
+        self._eq_pub = publisher(DiagnosticStatus, '~/equilibrium', eq_qos)
+        self._jumps_pub = publisher(DiagnosticStatus, '~/jumps', JUMPS_QOS)
         self._diag_pub = publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
-        self._markers_pub = publisher(MarkerArray, 'markers', MARKERS_QOS)
-        self._head_pub = publisher(PoseStamped, 'head_pose', HEAD_QOS)
+        self._markers_pub = publisher(MarkerArray, '~/markers', MARKERS_QOS)
+        self._head_pub = publisher(PoseStamped, '~/head_pose', HEAD_QOS)
+        self._motion_pub = publisher(DiagnosticStatus, '~/motion', MOTION_QOS)
+        self._tf_pub = None
+        if TFMessage is not None:
+            self._tf_pub = publisher(TFMessage, '/tf', TF_QOS)
+        else:
+            self.get_logger().info('tf2_msgs is not installed: no TF on /tf (markers and '
+                                   'head_pose carry the frame); a ROS install has it')
 
         for i, m in enumerate(self._names):
             subscription(Float64, f'{m}/rho_cmd', self._read_rho(i))
@@ -213,7 +251,8 @@ class TensegrityNode(Node):
                 subscription(Vector3, f'{m}/force_{node}', self._read_force(i, node))
         # serialized: joint names are read exactly (rclpy would cut them at a NUL)
         subscription(JointState, 'joint_commands', self._read_joint_commands, raw=True)
-        self.create_service(Trigger, 'reset', self._on_reset)
+        subscription(JointTrajectory, 'joint_trajectory', self._read_joint_trajectory)
+        self.create_service(Trigger, '~/reset', self._on_reset)
 
         # One timer serves joint_states, speed-limited motion, markers and /diagnostics
         # (fewer wait-set entities = less executor overhead per command).
@@ -224,7 +263,8 @@ class TensegrityNode(Node):
         for name in ('markers_rate', 'diagnostics_rate'):
             self._periodic[name] = [0, now]
             self._set_periodic(name, self.get_parameter(name).value, now)
-        self._frame_id = self.get_parameter('frame_id').value
+        self._set_frames()
+        self._loads = [self._sim.loads(i) for i in range(len(self._names))]
 
         self.add_pre_set_parameters_callback(self._pre_set_parameters)
         self.add_on_set_parameters_callback(self._validate_parameters)
@@ -336,11 +376,20 @@ class TensegrityNode(Node):
 
     def _pre_set_parameters(self, parameters):
         """Runs before rclpy's own checks: coerce int -> double, count what rclpy will refuse."""
+        if self._mirroring:
+            return parameters
         try:
             out = []
             for p in parameters:
                 if not self.has_parameter(p.name):
                     self._reject('parameter_undeclared', f'no parameter named {shown(p.name)}')
+                    out.append(p)
+                    continue
+                if p.type_ == Parameter.Type.NOT_SET:
+                    # rclpy refuses it too ("Static parameter cannot be undeclared")
+                    self._reject('parameter_delete',
+                                 f'{p.name}: parameters of this node cannot be deleted (each '
+                                 f'is declared with a type and a descriptor); set a value')
                     out.append(p)
                     continue
                 d = self.describe_parameter(p.name)
@@ -369,6 +418,8 @@ class TensegrityNode(Node):
 
     def _validate_parameters(self, parameters):
         """on-set callback: accept or refuse (with a reason) without changing any state."""
+        if self._mirroring:
+            return SetParametersResult(successful=True)
         try:
             reason = self._refusal(parameters)
         except Exception as exc:
@@ -411,6 +462,8 @@ class TensegrityNode(Node):
     def _apply_parameters(self, parameters):
         """post-set callback: node settings; module settings; then every physical or
         force change of the set on one tracked path."""
+        if self._mirroring:
+            return
         try:
             names = {p.name for p in parameters}
             if 'publish_rate' in names:
@@ -419,8 +472,8 @@ class TensegrityNode(Node):
             for name in ('markers_rate', 'diagnostics_rate'):
                 if name in names:
                     self._set_periodic(name, self.get_parameter(name).value, self._now_ns())
-            if 'frame_id' in names:
-                self._frame_id = self.get_parameter('frame_id').value
+            if names & {'frame_id', 'frame_prefix'}:
+                self._set_frames()
             values, now = self._current_values(), self._now_ns()
             changes, changed_names = {}, []
             for i, keys in self._affected_modules(parameters).items():
@@ -441,6 +494,34 @@ class TensegrityNode(Node):
             self._publish_statuses_if_changed()
         except Exception as exc:
             self._count_exception('parameter change', exc)
+
+    def _sync_force_parameters(self):
+        """The force parameters read back the live loads, whatever set them (a force
+        message, a parameter, a path stopped early): set those that differ (one
+        /parameter_events message), bypassing the set callbacks."""
+        changed = []
+        for i, m in enumerate(self._names):
+            loads = self._sim.loads(i)
+            if loads == self._loads[i]:
+                continue
+            self._loads[i] = loads
+            for node, force in zip(('a3', 'a4'), loads):
+                name, value = f'{m}.force_{node}', [float(force[0]), float(force[1])]
+                if list(self.get_parameter(name).value) != value:
+                    changed.append(Parameter(name, params.DOUBLE_ARRAY, value))
+        if changed:
+            self._mirroring = True
+            try:
+                self.set_parameters_atomically(changed)
+            finally:
+                self._mirroring = False
+
+    def _set_frames(self):
+        """Frame names from frame_prefix and frame_id: the root, each top chord, the head."""
+        self._frame_id, chords, head = params.frame_names(
+            self.get_parameter('frame_prefix').value, self.get_parameter('frame_id').value,
+            self._names)
+        self._tf = conv.FrameChain(self._frame_id, chords + [head])
 
     def _set_periodic(self, name, rate, now_ns):
         """markers_rate / diagnostics_rate: served by the publish_rate timer (0 = off)."""
@@ -565,7 +646,36 @@ class TensegrityNode(Node):
         return target_key(targets), lambda: self._apply_targets(
             targets, 'joint_commands', 'joint_commands')
 
-    def _joint_indices(self, names):
+    def _read_joint_trajectory(self, msg):
+        """A JointTrajectory (JointTrajectoryController's topic interface): ``<m>_rho``
+        joints, positions at time_from_start; read into a core Trajectory, checked by the
+        player (sizes, times, finite, limits).  No points: cancel the running one."""
+        topic = 'joint_trajectory'
+        if msg.points and not msg.joint_names:
+            return self._reject('size_mismatch', f'{topic}: points but no joint names')
+        indices, problem = self._joint_indices(list(msg.joint_names), topic)
+        if problem is not None:
+            return self._reject(*problem)
+        trajectory = conv.trajectory(msg, indices)
+        if isinstance(trajectory, tuple):               # (reason, text): a bad message
+            return self._reject(trajectory[0], f'{topic}: {trajectory[1]}')
+        refusal = self._player.refusal(trajectory) if trajectory.positions else None
+        if refusal is not None:
+            return self._reject(refusal.reason, f'{topic}: {refusal.message}')
+        return ('trajectory',), lambda: self._apply_trajectory(trajectory)
+
+    def _apply_trajectory(self, trajectory):
+        now = self._now_ns()
+        outcome = self._player.follow(trajectory, now)
+        if outcome.accepted and trajectory.positions:
+            self._counters['trajectories_accepted'] += 1
+            self.get_logger().info(
+                f'joint_trajectory {self._player.status.id}: {len(trajectory.times_ns)} '
+                f'points over {trajectory.duration_ns * 1e-9:.6g} s')
+        self._command(outcome, 'joint_trajectory', now)
+        self._publish_motion()
+
+    def _joint_indices(self, names, topic='joint_commands'):
         """(the module index of every joint name, None), or (None, (reason, text)) if a
         name is unknown or given twice; kept for the last list of names (a stream of
         commands repeats the very list: :class:`NamesAndPositions`)."""
@@ -576,20 +686,21 @@ class TensegrityNode(Node):
         for name in names:
             index = self._rho_joints.get(name)
             if index is None:
-                problem = ('unknown_joint', f'joint_commands: unknown joint {shown(name)} '
+                problem = ('unknown_joint', f'{topic}: unknown joint {shown(name)} '
                                             f'(commandable: {sorted(self._rho_joints)})')
                 break
             if index in indices:
-                problem = ('duplicate_joint', f'joint_commands: {shown(name)} given twice')
+                problem = ('duplicate_joint', f'{topic}: {shown(name)} given twice')
                 break
             indices.append(index)
         found = (None, problem) if problem is not None else (indices, None)
-        self._kept_joint_indices = (names, found)
+        if topic == 'joint_commands':
+            self._kept_joint_indices = (names, found)
         return found
 
     def _apply_targets(self, targets, source, cause):
         now = self._now_ns()
-        self._command(self._sim.command_rhos(targets, now, cause), source, now)
+        self._command(self._player.command_rhos(targets, now, cause), source, now)
 
     def _apply_force(self, index, node, force, source):
         now = self._now_ns()
@@ -603,11 +714,12 @@ class TensegrityNode(Node):
         self._counters['commands_processed'] += count
         self._report(outcome)
         self._publish_joint_states(now_ns)
+        self._sync_force_parameters()
 
     def _on_reset(self, request, response):
         try:
             modules, thetas = self._initial_configuration()
-            outcome = self._sim.reset(modules, thetas)
+            outcome = self._player.reset(modules, thetas)
             if not outcome.accepted:
                 response.success = False
                 response.message = f'reset failed, state unchanged: {outcome.message}'
@@ -651,8 +763,19 @@ class TensegrityNode(Node):
                 self._report_deferred(event)
             elif isinstance(event, Passage):
                 self._report_passage(event)
+            elif isinstance(event, MotionEnded):
+                self._report_motion_ended(event)
         if jumped:
             self._publish_statuses()
+
+    def _report_motion_ended(self, ended):
+        self._counters[f'trajectories_{ended.state}'] += 1
+        text = f'joint_trajectory {ended.id} {ended.state}: {ended.text}'
+        if ended.state == ABORTED:
+            self.get_logger().warning(text)
+        else:
+            self.get_logger().info(text)
+        self._publish_motion()
 
     def _report_jump(self, jump):
         self._counters['jumps_total'] += 1
@@ -710,8 +833,25 @@ class TensegrityNode(Node):
         """The whole state at once (start-up, reset)."""
         self._publish_joint_states()
         self._publish_head_pose()
+        self._publish_tf(self._now_ns())
         self._publish_statuses()
+        self._publish_motion()
         self._on_markers_tick()
+
+    def _publish_tf(self, now_ns):
+        """/tf: frame_id -> each module's top chord -> head (core.frames), stamped now."""
+        if self._tf_pub is None:
+            return
+        links = chord_frames([self._sim.module_nodes(i) for i in range(len(self._names))])
+        self._tf_pub.publish(TFMessage(transforms=self._tf.update(links, now_ns)))
+
+    def _publish_motion(self):
+        """~/motion: the trajectory player's status (latched), when it changed."""
+        if self._player.status is self._motion_status.status:
+            return
+        self._motion_pub.publish(self._motion_status.update(
+            name=f'{self.get_name()}: motion', hardware_id=self._hardware_id,
+            modules=self._names, status=self._player.status))
 
     def _publish_joint_states(self, now_ns=None):
         """Publish the live state, stamped ``now_ns`` (the time it holds for) or now."""
@@ -747,10 +887,12 @@ class TensegrityNode(Node):
 
     def _on_tick(self):
         now = self._now_ns()
-        self._report(self._sim.advance(now))
+        self._report(self._player.advance(now))
         self._publish_joint_states(now)
         self._publish_head_pose()
+        self._publish_tf(now)
         self._publish_statuses_if_changed()
+        self._sync_force_parameters()
         for name, action in (('markers_rate', self._on_markers_tick),
                              ('diagnostics_rate', self._publish_diagnostics)):
             entry = self._periodic[name]

@@ -120,10 +120,10 @@ def test_installed_neck_launch_file_starts_the_node_with_every_argument():
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         stable = []
-        node.create_subscription(Bool, '/launched/stable', lambda msg: stable.append(msg.data),
+        node.create_subscription(Bool, '/launched/bird_neck/stable', lambda msg: stable.append(msg.data),
                                  latched)
         parameters = AsyncParameterClient(node, '/launched/bird_neck')
-        spin_until(executor, proc, lambda: bool(stable), 'the latched /launched/stable')
+        spin_until(executor, proc, lambda: bool(stable), 'the latched /launched/bird_neck/stable')
         future = parameters.get_parameters(['modules', 'm0.rho_initial', 'm2.force_a3',
                                             'm1.k', 'use_sim_time'])
         spin_until(executor, proc, future.done, 'the node\'s parameters')

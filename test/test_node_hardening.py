@@ -249,7 +249,8 @@ def test_burst_of_fold_crossing_commands_is_processed_or_counted(harness):
     # a queue for every jump: the client takes one message per executor cycle, while a
     # node callback working off a backlog can publish several (the harness keeps 10)
     jumps = []
-    h.client.create_subscription(DiagnosticStatus, 'jumps', jumps.append, DEEP_LATCHED_QOS)
+    h.client.create_subscription(DiagnosticStatus, h.private('jumps'), jumps.append,
+                                 DEEP_LATCHED_QOS)
     h.spin_until(lambda: pub.get_subscription_count() > 0 and
                  h.counter('commands_processed') is not None, what='discovery')
 

@@ -38,7 +38,8 @@ class Neck:
         self.force_pubs = {(m, w): c.create_publisher(Vector3, f'{m}/force_{w}', PUB_QOS)
                            for m in MODULES for w in ('a3', 'a4')}
         self.head = []
-        c.create_subscription(PoseStamped, 'head_pose', self.head.append, LATCHED_QOS)
+        c.create_subscription(PoseStamped, h.private('head_pose'), self.head.append,
+                              LATCHED_QOS)
         h.ready()
         pubs = [*self.rho_pubs.values(), *self.force_pubs.values()]
         h.spin_until(lambda: all(p.get_subscription_count() > 0 for p in pubs) and self.head,

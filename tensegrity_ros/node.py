@@ -63,7 +63,8 @@ from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.params_file import ConfigError, check_parameter_file
 from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog,
                                                       force_key, target_key)
-from tensegrity_ros.core.events import Deferred, Jump, JumpAhead, Passage, TrackingFailure
+from tensegrity_ros.core.events import (FAILED, Deferred, Jump, JumpAhead, Passage,
+                                        TrackingFailure)
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.frames import chord_frames
 from tensegrity_ros.core.simulator import Simulator
@@ -490,7 +491,7 @@ class TensegrityNode(Node):
             if changes:
                 cause = 'parameter ' + ', '.join(sorted(changed_names))
                 self._command(self._sim.set_parameters(changes, now, cause), 'parameters',
-                              now, count=1)
+                              now, loads=True)
             self._publish_statuses_if_changed()
         except Exception as exc:
             self._count_exception('parameter change', exc)
@@ -704,17 +705,20 @@ class TensegrityNode(Node):
 
     def _apply_force(self, index, node, force, source):
         now = self._now_ns()
-        self._command(self._sim.set_force(index, node, force, now), source, now)
+        self._command(self._sim.set_force(index, node, force, now), source, now, loads=True)
 
-    def _command(self, outcome, source, now_ns, count=1):
+    def _command(self, outcome, source, now_ns, loads=False):
         """Report a command's outcome: a refusal is counted and dropped; otherwise its
-        events are published and the new state goes out stamped ``now_ns``."""
+        events are published and the new state goes out stamped ``now_ns``; the force
+        parameters follow the loads if the command set them (``loads``) or a path
+        stopped early."""
         if not outcome.accepted:
             return self._reject(outcome.reason, f'{source}: {outcome.message}')
-        self._counters['commands_processed'] += count
+        self._counters['commands_processed'] += 1
         self._report(outcome)
         self._publish_joint_states(now_ns)
-        self._sync_force_parameters()
+        if loads or outcome.status == FAILED:
+            self._sync_force_parameters()
 
     def _on_reset(self, request, response):
         try:
@@ -887,12 +891,14 @@ class TensegrityNode(Node):
 
     def _on_tick(self):
         now = self._now_ns()
-        self._report(self._player.advance(now))
+        advanced = self._player.advance(now)
+        self._report(advanced)
         self._publish_joint_states(now)
         self._publish_head_pose()
         self._publish_tf(now)
         self._publish_statuses_if_changed()
-        self._sync_force_parameters()
+        if advanced.status == FAILED:       # a path stopped early: loads on the way
+            self._sync_force_parameters()
         for name, action in (('markers_rate', self._on_markers_tick),
                              ('diagnostics_rate', self._publish_diagnostics)):
             entry = self._periodic[name]

@@ -195,13 +195,11 @@ class TrajectoryPlayer:
     def command_rhos(self, targets, now_ns, cause):
         """A direct actuator command (:meth:`Simulator.command_rhos`); it cancels the
         running trajectory if it moves one of its modules (unless refused)."""
-        refusal = self.simulator.rhos_refusal(targets)
-        if refusal is not None:
-            return refusal
-        canceled = Outcome()
-        if self._run is not None and set(targets) & set(self._run.trajectory.joints):
-            canceled = self._ended(CANCELED, f'canceled by {cause}')
-        return ev.combined([canceled, self.simulator.command_rhos(targets, now_ns, cause)])
+        outcome = self.simulator.command_rhos(targets, now_ns, cause)
+        run = self._run
+        if run is None or not outcome.accepted or not set(targets) & set(run.trajectory.joints):
+            return outcome
+        return ev.combined([self._ended(CANCELED, f'canceled by {cause}'), outcome])
 
     def reset(self, modules, initial_theta):
         """:meth:`Simulator.reset`; an accepted reset cancels the running trajectory."""

@@ -1,4 +1,4 @@
-"""The ``tensegrity_node``: the ROS layer around the core simulator (DESIGN.md sections 5, 8).
+"""The ``tensegrity_node``: the ROS layer around the core simulator (interface: msg_docs/).
 
 What the mechanism does -- targets, speed limits, loads, parameter changes, reset,
 tracking, jumps, verification -- is decided by :class:`tensegrity_ros.core.simulator.

@@ -4,8 +4,8 @@ The per-module parameters and the way from their values to the simulator's
 configuration are ROS-free, in :mod:`tensegrity_ros.module_parameters` (shared with the
 parameter files of the offline tools); their names are re-exported here so that the
 node reads all of its parameters through this module.  ``MODULE_PARAMETERS`` (per
-module, ``<m>.<name>``) and ``NODE_PARAMETERS`` are the parameter contract (DESIGN.md
-section 5; README's parameter table mirrors them).
+module, ``<m>.<name>``) and ``NODE_PARAMETERS`` are the parameter contract (README's
+parameter table and ``ros2 param describe`` show them).
 """
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 The project's own environment has no ``launch`` (it is not in requirements.txt): there the
 files are checked as Python source, that they declare the arguments README documents.  In a
-ROS environment (``colcon test``, see README, Development) the installed neck launch file is
+ROS environment (``colcon test``, see docs/development.md) the installed neck launch file is
 also run for real with every argument set, and what comes up is asked over ROS.
 """
 import ast
@@ -94,7 +94,7 @@ def test_a_parameter_file_as_launch_ros_writes_it_is_read(tmp_path):
 
 def test_installed_neck_launch_file_starts_the_node_with_every_argument():
     pytest.importorskip('launch_ros', reason='no launch_ros here (not in requirements.txt): this '
-                        'test runs under colcon test in a ROS environment (README, Development)')
+                        'test runs under colcon test in a ROS environment (docs/development.md)')
     import rclpy
     from ament_index_python.packages import get_package_share_directory
     from rclpy.executors import SingleThreadedExecutor

@@ -1,4 +1,4 @@
-"""The simulator in dynamics mode (DESIGN.md section 9): the rods move in real time.
+"""The simulator in dynamics mode (docs/model.md section 5): the rods move in real time.
 
 :class:`DynamicSimulator` has the :class:`~.simulator.Simulator` interface, but a
 command does not jump the state to the end of a tracked path: the actuators run at

@@ -16,12 +16,12 @@ applies to this node's logger only (not to rcl and the DDS layer underneath).
 """
 import os
 
-import yaml
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction, Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+import yaml
 
 PACKAGE = 'tensegrity_ros'
 
@@ -104,7 +104,7 @@ def arguments(config):
         DeclareLaunchArgument('log_level', default_value='info',
                               choices=['debug', 'info', 'warn', 'error', 'fatal'],
                               description="the node's log level (its logger only, not rcl's "
-                                          'or the DDS layer\'s)'),
+                                          "or the DDS layer's)"),
     ]
 
 

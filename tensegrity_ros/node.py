@@ -34,22 +34,22 @@ if __name__ == '__main__' or os.path.basename(sys.argv[0]) == 'tensegrity_node':
     signal.signal(signal.SIGINT, lambda *_: os._exit(0))
     signal.signal(signal.SIGTERM, lambda *_: os._exit(0))
 
-import rclpy
-import rclpy.executors
-import rclpy.logging
-import rclpy.utilities
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, Vector3
 from rcl_interfaces.msg import SetParametersResult
+import rclpy
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
                               ParameterException)
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+import rclpy.executors
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+import rclpy.logging
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
+import rclpy.utilities
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64
 from std_srvs.srv import Trigger
@@ -58,18 +58,17 @@ from visualization_msgs.msg import MarkerArray
 
 from tensegrity_ros import node_parameters as params
 from tensegrity_ros import ros_conversions as conv
-from tensegrity_ros.joint_state_names import NamesAndPositions, exact_names
-from tensegrity_ros.log_text import clipped, shown
-from tensegrity_ros.params_file import ConfigError, check_parameter_file
-from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog,
-                                                      force_key, target_key)
-from tensegrity_ros.core.events import (FAILED, Deferred, Jump, JumpAhead, Passage,
-                                        TrackingFailure)
+from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog, force_key,
+                                                    target_key)
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
+from tensegrity_ros.core.events import Deferred, FAILED, Jump, JumpAhead, Passage, TrackingFailure
 from tensegrity_ros.core.frames import chord_frames
 from tensegrity_ros.core.simulator import Simulator
 from tensegrity_ros.core.stack import Stack
 from tensegrity_ros.core.trajectory import ABORTED, MotionEnded, TrajectoryPlayer
+from tensegrity_ros.joint_state_names import exact_names, NamesAndPositions
+from tensegrity_ros.log_text import clipped, shown
+from tensegrity_ros.params_file import check_parameter_file, ConfigError
 
 try:                            # every ROS install has it; the PyPI wheels do not
     from tf2_msgs.msg import TFMessage
@@ -170,7 +169,7 @@ class TensegrityNode(Node):
         self._counters.update(commands_processed=0, commands_coalesced=0,
                               callback_exceptions=0, jump_warnings=0,
                               tracking_failures=0, jumps_total=0, commands_deferred=0)
-        self._counters.update({name: 0 for name in TRAJECTORY_COUNTERS})
+        self._counters.update(dict.fromkeys(TRAJECTORY_COUNTERS, 0))
         self._mirroring = False             # setting parameters to live values
         self._level_events = set()          # what happened since the last /diagnostics
         self._loggers = {}
@@ -209,8 +208,9 @@ class TensegrityNode(Node):
 
         The node's own outputs and its service are private (``~/``), the commands and
         joint_states relative, so that namespaces and remapping work (/diagnostics and /tf
-        are absolute by ROS convention).  No per-endpoint QoS event handlers: each is a waitable the
-        executor re-adds to its wait set before every callback (about 20 us each); QoS
+        are absolute by ROS convention).  No per-endpoint QoS event handlers: each is a
+        waitable the executor re-adds to its wait set before every callback (about 20 us
+        each); QoS
         mismatches are still reported by the peer.
         """
         def publisher(msg_type, topic, qos):
@@ -483,8 +483,8 @@ class TensegrityNode(Node):
                 self._report(self._sim.set_limits(i, params.module_limits(get), now))
                 if self._dynamics and 'damping' in keys:
                     self._report(self._sim.set_damping(i, get('damping'), now))
-                moving = [k for k in keys if params.kind_of(k) in (params.PHYSICAL,
-                                                                    params.FORCE)]
+                moving = [k for k in keys
+                          if params.kind_of(k) in (params.PHYSICAL, params.FORCE)]
                 if moving:
                     changes[i] = params.design_changes(get, self._sim.goal(i), moving)
                     changed_names += [f'{m}.{k}' for k in moving]
@@ -671,7 +671,7 @@ class TensegrityNode(Node):
         if outcome.accepted and trajectory.positions:
             self._counters['trajectories_accepted'] += 1
             self.get_logger().info(
-                f'joint_trajectory {self._player.status.id}: {len(trajectory.times_ns)} '
+                f'joint_trajectory {self._player.status.number}: {len(trajectory.times_ns)} '
                 f'points over {trajectory.duration_ns * 1e-9:.6g} s')
         self._command(outcome, 'joint_trajectory', now)
         self._publish_motion()
@@ -774,7 +774,7 @@ class TensegrityNode(Node):
 
     def _report_motion_ended(self, ended):
         self._counters[f'trajectories_{ended.state}'] += 1
-        text = f'joint_trajectory {ended.id} {ended.state}: {ended.text}'
+        text = f'joint_trajectory {ended.number} {ended.state}: {ended.text}'
         if ended.state == ABORTED:
             self.get_logger().warning(text)
         else:
@@ -795,7 +795,8 @@ class TensegrityNode(Node):
         """A continuous buckling is no jump (nothing on ``jumps``), but the state left a
         symmetric branch for one side: say so once, at INFO."""
         m = self._names[passage.module]
-        rhos = ', '.join(f'{name} rho={p.rho:.6g}' for name, p in zip(self._names, passage.modules))
+        rhos = ', '.join(f'{name} rho={p.rho:.6g}'
+                         for name, p in zip(self._names, passage.modules))
         self.get_logger().info(f'{m}: passed a branch point continuously ({passage.cause}) at '
                                f'{rhos}: the mechanism buckled smoothly to one side, no jump')
 

@@ -14,17 +14,19 @@ import re
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.parameter import Parameter
 
-from tensegrity_ros.module_parameters import (
-    FORCE, INITIAL, LIMIT, MODULE_PARAMETERS, PHYSICAL, SETTING, check_dynamics_values,
-    check_module_values, design_changes, initial_params, kind_of, module_getter, module_limits, module_params)
+from tensegrity_ros.module_parameters import (check_dynamics_values, check_module_values,
+                                              design_changes, FORCE, INITIAL, initial_params,
+                                              kind_of, LIMIT, module_getter, module_limits,
+                                              MODULE_PARAMETERS, module_params, PHYSICAL, SETTING)
 
 __all__ = [
     'MAX_MODULES', 'BOOL', 'DOUBLE', 'DOUBLE_ARRAY', 'STRING', 'STRING_ARRAY', 'NODE_PARAMETERS',
-    'frame_problem', 'frame_names', 'descriptor', 'declarations', 'parameter_types', 'check_node_values',
+    'frame_problem', 'frame_names', 'descriptor', 'declarations', 'parameter_types',
+    'check_node_values',
     # per-module parameters (module_parameters), for the node
     'FORCE', 'INITIAL', 'LIMIT', 'MODULE_PARAMETERS', 'PHYSICAL', 'SETTING',
-    'check_dynamics_values', 'check_module_values', 'design_changes', 'initial_params', 'kind_of', 'module_getter',
-    'module_limits', 'module_params',
+    'check_dynamics_values', 'check_module_values', 'design_changes', 'initial_params', 'kind_of',
+    'module_getter', 'module_limits', 'module_params',
 ]
 
 #: How many modules one node hosts at most (a stack of N modules has 4N coupled unknowns;
@@ -72,7 +74,7 @@ NODE_PARAMETERS = (
      'a TF frame id, e.g. tensegrity_base or robot1/neck_base', None, False),
     ('frame_prefix', '', STRING,
      'Prepended to every frame name the node uses (frame_id, <m>_top_chord, head), as '
-     'robot_state_publisher\'s frame_prefix: e.g. robot1/ for two necks in one TF tree.',
+     "robot_state_publisher's frame_prefix: e.g. robot1/ for two necks in one TF tree.",
      "'' or a prefix that makes frame names TF frame ids, e.g. robot1/", None, False),
     ('dynamics', False, BOOL,
      'false: quasi-static (the state jumps to the end of each tracked path). true: the rods '
@@ -89,8 +91,9 @@ def declarations(names):
     """(name, default, ParameterDescriptor) of every node and module parameter."""
     out = []
     for name, default, type_, description, constraints, range_, read_only in NODE_PARAMETERS:
-        out.append((name, default, descriptor(description, type_=type_, constraints=constraints,
-                                               range_=range_, read_only=read_only)))
+        out.append((name, default, descriptor(
+            description, type_=type_, constraints=constraints, range_=range_,
+            read_only=read_only)))
     for m in names:
         for name, default, type_, _kind, description, constraints, range_ in MODULE_PARAMETERS:
             out.append((f'{m}.{name}', default, descriptor(

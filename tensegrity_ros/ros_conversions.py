@@ -474,7 +474,7 @@ class MotionStatusBuffer:
             message=f'{status.state}: {status.text}', hardware_id=hardware_id)
         self.msg.values = key_values([
             ('state', status.state),
-            ('id', status.id),
+            ('id', status.number),
             ('joints', '[' + ', '.join(joints) + ']'),
             ('goal', fmt_vector(status.goal)),
             ('duration', float(status.duration)),

@@ -7,12 +7,13 @@ at the top chord's midpoint with the head_pose angle, for one module and a neck.
 import math
 from pathlib import Path
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
 
 from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.frames import PlanarTransform, chord_frames
+from tensegrity_ros.core.frames import chord_frames, PlanarTransform
 from tensegrity_ros.core.simulator import Simulator
 from tensegrity_ros.params_file import load_stack_config
 

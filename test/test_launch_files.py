@@ -7,11 +7,11 @@ also run for real with every argument set, and what comes up is asked over ROS.
 """
 import ast
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 
@@ -60,7 +60,7 @@ def test_every_launch_file_has_a_launch_description():
 
 # Runs a launch file the way ``ros2 launch <file> name:=value ...`` does.  launch sees SIGINT
 # through Python's handler: restore it in case this process was started with SIGINT ignored.
-LAUNCHER = '''
+LAUNCHER = """
 import signal
 import sys
 signal.signal(signal.SIGINT, signal.default_int_handler)
@@ -72,7 +72,7 @@ service = LaunchService()
 service.include_launch_description(IncludeLaunchDescription(
     PythonLaunchDescriptionSource(sys.argv[1]), launch_arguments=arguments))
 sys.exit(service.run())
-'''
+"""
 
 
 @pytest.mark.ros
@@ -81,6 +81,7 @@ def test_a_parameter_file_as_launch_ros_writes_it_is_read(tmp_path):
     turning lists into tuples (``!!python/tuple``); rcl reads that, so the node's own
     check must too (it refused it: "could not determine a constructor", exit 2)."""
     import yaml
+
     from tensegrity_ros.params_file import check_parameter_file, load_stack_config
     path = tmp_path / 'launch_params.yaml'
     path.write_text(yaml.dump({'/**': {'ros__parameters': {
@@ -95,8 +96,8 @@ def test_a_parameter_file_as_launch_ros_writes_it_is_read(tmp_path):
 def test_installed_neck_launch_file_starts_the_node_with_every_argument():
     pytest.importorskip('launch_ros', reason='no launch_ros here (not in requirements.txt): this '
                         'test runs under colcon test in a ROS environment (docs/development.md)')
-    import rclpy
     from ament_index_python.packages import get_package_share_directory
+    import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter_client import AsyncParameterClient
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -120,13 +121,13 @@ def test_installed_neck_launch_file_starts_the_node_with_every_argument():
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         stable = []
-        node.create_subscription(Bool, '/launched/bird_neck/stable', lambda msg: stable.append(msg.data),
-                                 latched)
+        node.create_subscription(Bool, '/launched/bird_neck/stable',
+                                 lambda msg: stable.append(msg.data), latched)
         parameters = AsyncParameterClient(node, '/launched/bird_neck')
         spin_until(executor, proc, lambda: bool(stable), 'the latched /launched/bird_neck/stable')
         future = parameters.get_parameters(['modules', 'm0.rho_initial', 'm2.force_a3',
                                             'm1.k', 'use_sim_time'])
-        spin_until(executor, proc, future.done, 'the node\'s parameters')
+        spin_until(executor, proc, future.done, "the node's parameters")
         values = [rclpy.parameter.parameter_value_to_python(v) for v in future.result().values]
         assert stable == [True]
         assert values[0] == ['m0', 'm1', 'm2']             # config/neck.yaml

@@ -10,15 +10,15 @@ the node gives 1.41894, force_a3/a4.md a queue depth of 100 where the node keeps
 the early-warning line a fold at 0.0964 no configuration of the pages gives.
 """
 import math
-import re
 from pathlib import Path
+import re
 
-import pytest
-import yaml
 from geometry_msgs.msg import PoseStamped
+import pytest
 from std_msgs.msg import Float64
+import yaml
 
-from test_node import LATCHED_QOS, PUB_QOS, fig8a_overrides, harness, ros, values  # noqa: F401
+from test_node import fig8a_overrides, LATCHED_QOS, PUB_QOS, values
 from test_node_neck import NECK_CONFIG
 
 pytestmark = pytest.mark.ros
@@ -215,6 +215,7 @@ ENDPOINTS = {
 
 def test_qos_depths_are_the_nodes(harness):
     from rclpy.qos import DurabilityPolicy
+
     from tensegrity_ros import node as node_module
     h = harness().ready()
     node = h.node
@@ -261,6 +262,7 @@ def test_the_constants_the_pages_quote():
     assert f'queue of {depth}' in text['README.md'] and f'queue of {depth}' in \
         text['diagnostics.md']
     assert f'{depth / 5000:g} s of a 5 kHz stream' in text['diagnostics.md']
+
     def power(x):
         return f'1e{round(math.log10(x))}'
     for name in ('diagnostics.md', 'force_a3.md', 'force_a4.md'):

@@ -11,11 +11,11 @@ import math
 import os
 from pathlib import Path
 
-import pytest
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Vector3
+import pytest
 from rcl_interfaces.msg import Log, ParameterType
+import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -44,13 +44,6 @@ STREAM_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
 
 _namespaces = itertools.count()
-
-
-@pytest.fixture(scope='module')
-def ros():
-    rclpy.init()
-    yield
-    rclpy.try_shutdown()
 
 
 def values(status):
@@ -202,20 +195,6 @@ class Harness:
     def call(self, future, what):
         self.spin_until(future.done, what=what)
         return future.result()
-
-
-@pytest.fixture
-def harness(ros):
-    made = []
-
-    def make(*args, **kwargs):
-        h = Harness(*args, **kwargs)
-        made.append(h)
-        return h
-
-    yield make
-    for h in reversed(made):
-        h.close()
 
 
 # ---------------------------------------------------------------------------
@@ -730,7 +709,7 @@ def test_speed_limit_splits_a_command_into_segments(harness):
     n = len(h.joint_states)
     h.rho_pub.publish(Float64(data=0.95))
     h.spin_until(lambda: h.joint_states[-1].position[0] == 0.95, what='rho reaches 0.95')
-    moving = [m for m in h.joint_states[n:]]
+    moving = list(h.joint_states[n:])
     rhos = [m.position[0] for m in moving]
     assert rhos == sorted(rhos)                                # monotone
     intermediate = [r for r in rhos if 0.75 < r < 0.95]

@@ -12,17 +12,15 @@ import sys
 import threading
 import time
 
-import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Vector3
+import pytest
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
-from tensegrity_ros.core import ModuleParams, equilibria, settle, track_module
-
-from test_node import harness, ros  # noqa: F401  (fixtures)
+from tensegrity_ros.core import equilibria, ModuleParams, settle, track_module
 from test_node import LATCHED_QOS, ROOT, STREAM_QOS, TIMEOUT
 
 pytestmark = pytest.mark.ros

@@ -7,11 +7,11 @@ inherits this session's loopback-only discovery and ROS_DOMAIN_ID (test/conftest
 """
 import contextlib
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 import rclpy

@@ -12,18 +12,18 @@ and in parallel workers.
 """
 import math
 
-import numpy as np
-import pytest
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, Vector3
+import numpy as np
+import pytest
 from rcl_interfaces.msg import Log
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from tensegrity_ros.core import ModuleParams, settle, track_module
-from test_node import LATCHED_QOS, PUB_QOS, fig8a_overrides, harness, ros, values  # noqa: F401
+from test_node import fig8a_overrides, LATCHED_QOS, PUB_QOS, values
 
 pytestmark = pytest.mark.ros
 
@@ -202,6 +202,7 @@ def test_tf_chain_composes_to_the_head_pose(harness):
     pytest.importorskip('tf2_msgs', reason='no tf2_msgs wheel on PyPI: this test runs where '
                         'ROS has it (colcon test in a ROS environment, README, Development)')
     from tf2_msgs.msg import TFMessage
+
     from test_node_neck import NECK_CONFIG
     h = harness(cli_args=['--ros-args', '--params-file', str(NECK_CONFIG)],
                 parameters={'frame_prefix': 'bird/'}).ready()

@@ -5,10 +5,10 @@ alone; matplotlib and tqdm are the offline tool's, the ``tools`` extra; package.
 setup.py say so, and package.xml is a complete format-3 manifest.
 """
 import ast
+from pathlib import Path
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
-from pathlib import Path
 
 import pytest
 
@@ -67,8 +67,8 @@ def test_the_manifest_is_complete():
         assert (root.findtext(tag) or '').strip(), tag
     email = root.find('maintainer').get('email')
     assert email and not email.endswith('.invalid')
-    assert {u.get('type') for u in root.findall('url')} == {'website', 'repository',
-                                                           'bugtracker'}
+    urls = {u.get('type') for u in root.findall('url')}
+    assert urls == {'website', 'repository', 'bugtracker'}
     tests = {e.text for e in root.findall('test_depend')}
     assert {'ament_flake8', 'ament_pep257', 'python3-pytest'} <= tests
     assert root.find('export/build_type').text == 'ament_python'

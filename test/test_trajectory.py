@@ -7,15 +7,16 @@ path for an abort.
 """
 import math
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
 
 from tensegrity_ros.core import ModuleParams, settle, track_module
 from tensegrity_ros.core.events import Jump, Outcome, refused
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
-from tensegrity_ros.core.trajectory import (ABORTED, CANCELED, EXECUTING, IDLE, SUCCEEDED,
-                                            MotionEnded, Trajectory, TrajectoryPlayer)
+from tensegrity_ros.core.trajectory import (ABORTED, CANCELED, EXECUTING, IDLE, MotionEnded,
+                                            SUCCEEDED, Trajectory, TrajectoryPlayer)
 
 S = 1_000_000_000
 LOWER = [-1.0, -1.0]
@@ -166,8 +167,8 @@ def test_replaced_canceled_by_a_command_by_an_empty_trajectory_and_by_reset():
     player = TrajectoryPlayer(sim)
     player.follow(trajectory([(1.0, [1.0])]), now_ns=0)
     outcome = player.follow(trajectory([(1.0, [0.9])]), now_ns=0)
-    assert [(e.id, e.state) for e in ended(outcome)] == [(1, CANCELED)]
-    assert player.status.id == 2 and player.status.state == EXECUTING
+    assert [(e.number, e.state) for e in ended(outcome)] == [(1, CANCELED)]
+    assert player.status.number == 2 and player.status.state == EXECUTING
     # a command to another module does not cancel it, one to its module does
     assert ended(player.command_rhos({1: 0.3}, S // 2, 'm1/rho_cmd')) == []
     outcome = player.command_rhos({0: 0.3}, S // 2, 'm0/rho_cmd')
@@ -177,7 +178,7 @@ def test_replaced_canceled_by_a_command_by_an_empty_trajectory_and_by_reset():
     assert player.follow(Trajectory((), (), ()), now_ns=S).events[0].state == CANCELED
     player.follow(trajectory([(1.0, [1.0])]), now_ns=S)
     assert ended(player.reset((), ()))[0].text == 'canceled by reset'
-    assert player.status.state == CANCELED and player.status.id == 4
+    assert player.status.state == CANCELED and player.status.number == 4
 
 
 def test_a_refused_step_or_a_failed_path_aborts():

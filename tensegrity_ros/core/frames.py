@@ -15,8 +15,8 @@ geometry_msgs/TransformStamped); tested against the node positions it is built f
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 
 @dataclass(frozen=True)

@@ -29,8 +29,8 @@ non-finite positions (``non_finite``), positions outside [rho_min, rho_max]
 from __future__ import annotations
 
 import bisect
-import math
 from dataclasses import dataclass
+import math
 
 from . import events as ev
 from .events import Outcome, TrackingFailure
@@ -89,12 +89,12 @@ class Trajectory:
 @dataclass(frozen=True)
 class MotionStatus:
     """What the player is doing: ``state`` (IDLE, EXECUTING, SUCCEEDED, ABORTED,
-    CANCELED) of trajectory number ``id`` (1, 2, ... since the start; 0: none), its
+    CANCELED) of trajectory ``number`` (1, 2, ... since the start; 0: none), its
     ``joints`` (module indices), final ``goal`` (one rho per joint), ``duration`` (s, the
     last point's time), ``points`` (count) and ``text`` (why it ended, or what it does)."""
 
     state: str = IDLE
-    id: int = 0
+    number: int = 0
     joints: tuple = ()
     goal: tuple = ()
     duration: float = 0.0
@@ -104,10 +104,10 @@ class MotionStatus:
 
 @dataclass(frozen=True)
 class MotionEnded:
-    """Event: trajectory ``id`` ended (``state`` SUCCEEDED, ABORTED or CANCELED); ``module``
-    is its first joint (for logs), ``text`` says why."""
+    """Event: trajectory ``number`` ended (``state`` SUCCEEDED, ABORTED or CANCELED);
+    ``module`` is its first joint (for logs), ``text`` says why."""
 
-    id: int
+    number: int
     state: str
     module: int
     text: str
@@ -118,7 +118,7 @@ class _Run:
     last time it was sampled at and the last targets it commanded."""
 
     def __init__(self, number, trajectory, start_ns, anchor):
-        self.id = number
+        self.number = number
         self.trajectory = trajectory
         self.start_ns = start_ns
         self.anchor = anchor                # one rho per joint at the start
@@ -174,7 +174,7 @@ class TrajectoryPlayer:
         self._run = _Run(self._count, trajectory, start, anchor)
         self._cause = cause
         self.status = MotionStatus(
-            state=EXECUTING, id=self._count, joints=tuple(trajectory.joints),
+            state=EXECUTING, number=self._count, joints=tuple(trajectory.joints),
             goal=tuple(trajectory.positions[-1]), duration=trajectory.duration_ns * 1e-9,
             points=len(trajectory.times_ns),
             text=f'executing {len(trajectory.times_ns)} points over '
@@ -279,9 +279,9 @@ class TrajectoryPlayer:
         if run is None:
             return Outcome()
         self.status = MotionStatus(
-            state=state, id=run.id, joints=self.status.joints, goal=self.status.goal,
+            state=state, number=run.number, joints=self.status.joints, goal=self.status.goal,
             duration=self.status.duration, points=self.status.points, text=text)
-        return Outcome(events=(MotionEnded(id=run.id, state=state,
+        return Outcome(events=(MotionEnded(number=run.number, state=state,
                                            module=run.trajectory.joints[0], text=text),))
 
 

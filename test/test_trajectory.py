@@ -222,3 +222,22 @@ def test_a_jump_on_the_way_is_reported_and_lands_where_the_tracker_lands(rate):
     np.testing.assert_allclose(sim.module(0)[1].theta, expected.final.theta, atol=1e-6)
     if rate:
         assert now >= 0.8 * S                        # 0.4 m at 0.5 m/s
+
+
+def test_in_the_dynamics_mode_it_succeeds_once_the_rods_rest_at_the_goal():
+    """The rods move with their inertia: the trajectory's end time passes while they still
+    swing; it has succeeded only when they rest at its last point."""
+    from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
+    params = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)
+    sim = DynamicSimulator([params], [LOWER], [ModuleLimits(0.05, 1.95, max_rho_rate=1.0)],
+                           damping=[0.5])
+    player = TrajectoryPlayer(sim)
+    player.follow(trajectory([(0.2, [0.6])]), now_ns=0)
+    now, moving_after_end = 0, False
+    while player.status.state == EXECUTING:
+        now += S // 50
+        assert now < 60 * S
+        player.advance(now)
+        moving_after_end |= now > 0.2 * S and sim.moving and player.status.state == EXECUTING
+    assert player.status.state == SUCCEEDED and not sim.moving
+    assert sim.modules[0].rho == 0.6 and moving_after_end

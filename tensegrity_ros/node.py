@@ -265,7 +265,7 @@ class TensegrityNode(Node):
             self._periodic[name] = [0, now]
             self._set_periodic(name, self.get_parameter(name).value, now)
         self._set_frames()
-        self._loads = [self._sim.loads(i) for i in range(len(self._names))]
+        self._designs = [self._sim.design(i) for i in range(len(self._names))]
 
         self.add_pre_set_parameters_callback(self._pre_set_parameters)
         self.add_on_set_parameters_callback(self._validate_parameters)
@@ -496,20 +496,21 @@ class TensegrityNode(Node):
         except Exception as exc:
             self._count_exception('parameter change', exc)
 
-    def _sync_force_parameters(self):
-        """The force parameters read back the live loads, whatever set them (a force
-        message, a parameter, a path stopped early): set those that differ (one
+    def _sync_parameters(self):
+        """The design and force parameters read back the live values, whatever set them (a
+        force message, a parameter, a path stopped early): set those that differ (one
         /parameter_events message), bypassing the set callbacks."""
         changed = []
+        values = None
         for i, m in enumerate(self._names):
-            loads = self._sim.loads(i)
-            if loads == self._loads[i]:
+            design = self._sim.design(i)
+            if design == self._designs[i]:
                 continue
-            self._loads[i] = loads
-            for node, force in zip(('a3', 'a4'), loads):
-                name, value = f'{m}.force_{node}', [float(force[0]), float(force[1])]
-                if list(self.get_parameter(name).value) != value:
-                    changed.append(Parameter(name, params.DOUBLE_ARRAY, value))
+            self._designs[i] = design
+            values = values or self._current_values()
+            for key, value in params.live_values(params.module_getter(m, values),
+                                                 design).items():
+                changed.append(Parameter(f'{m}.{key}', value=value))
         if changed:
             self._mirroring = True
             try:
@@ -718,7 +719,7 @@ class TensegrityNode(Node):
         self._report(outcome)
         self._publish_joint_states(now_ns)
         if loads or outcome.status == FAILED:
-            self._sync_force_parameters()
+            self._sync_parameters()
 
     def _on_reset(self, request, response):
         try:
@@ -899,7 +900,7 @@ class TensegrityNode(Node):
         self._publish_tf(now)
         self._publish_statuses_if_changed()
         if advanced.status == FAILED:       # a path stopped early: loads on the way
-            self._sync_force_parameters()
+            self._sync_parameters()
         for name, action in (('markers_rate', self._on_markers_tick),
                              ('diagnostics_rate', self._publish_diagnostics)):
             entry = self._periodic[name]

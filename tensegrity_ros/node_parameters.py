@@ -16,8 +16,9 @@ from rclpy.parameter import Parameter
 
 from tensegrity_ros.module_parameters import (check_dynamics_values, check_module_values,
                                               design_changes, FORCE, INITIAL, initial_params,
-                                              kind_of, LIMIT, module_getter, module_limits,
-                                              MODULE_PARAMETERS, module_params, PHYSICAL, SETTING)
+                                              kind_of, LIMIT, live_values, module_getter,
+                                              module_limits, MODULE_PARAMETERS, module_params,
+                                              PHYSICAL, SETTING)
 
 __all__ = [
     'MAX_MODULES', 'BOOL', 'DOUBLE', 'DOUBLE_ARRAY', 'STRING', 'STRING_ARRAY', 'NODE_PARAMETERS',
@@ -26,7 +27,7 @@ __all__ = [
     # per-module parameters (module_parameters), for the node
     'FORCE', 'INITIAL', 'LIMIT', 'MODULE_PARAMETERS', 'PHYSICAL', 'SETTING',
     'check_dynamics_values', 'check_module_values', 'design_changes', 'initial_params', 'kind_of',
-    'module_getter', 'module_limits', 'module_params',
+    'live_values', 'module_getter', 'module_limits', 'module_params',
 ]
 
 #: How many modules one node hosts at most (a stack of N modules has 4N coupled unknowns;

@@ -200,7 +200,7 @@ def test_without_tf2_msgs_one_info_line_and_no_tf(harness, monkeypatch):
 
 def test_tf_chain_composes_to_the_head_pose(harness):
     pytest.importorskip('tf2_msgs', reason='no tf2_msgs wheel on PyPI: this test runs where '
-                        'ROS has it (colcon test in a ROS environment, README, Development)')
+                        'ROS has it (colcon test in a ROS environment, docs/development.md)')
     from tf2_msgs.msg import TFMessage
 
     from test_node_neck import NECK_CONFIG
@@ -291,3 +291,31 @@ def test_bad_trajectories_are_refused_with_a_reason_and_counted(harness, msg, ke
     h.spin_until(lambda: any(words in m for m in h.warnings('joint_trajectory')),
                  what=f'a warning saying {words!r}')
     assert motion.last()['state'] == 'idle'
+
+
+# ---------------------------------------------------------------------------
+# what the parameters read back (module_parameters.live_values, ROS-free)
+
+
+def _getter(**values):
+    from tensegrity_ros.module_parameters import MODULE_DEFAULTS
+    table = dict(MODULE_DEFAULTS, **values)
+    return lambda key: table[key]
+
+
+def test_live_values_are_what_no_longer_reads_back():
+    from tensegrity_ros.module_parameters import live_values
+    live = ModuleParams.paper(0.5, F3=5.0, F4=5.0)
+    assert live_values(_getter(force_a3=[0.0, 5.0], force_a4=[0.0, 5.0]), live) == {}
+    assert live_values(_getter(), live) == {'force_a3': [0.0, 5.0], 'force_a4': [0.0, 5.0]}
+    # springs following k (0.0) read back through k; an override through itself
+    stopped = live.with_(ka=120.0, kb=120.0, kc=120.0, L1=1.1)
+    got = live_values(_getter(k=150.0, force_a3=[0.0, 5.0], force_a4=[0.0, 5.0]), stopped)
+    assert got == {'k': 120.0, 'L1': 1.1}
+    got = live_values(_getter(kc=90.0, force_a3=[0.0, 5.0], force_a4=[0.0, 5.0]),
+                      live.with_(kc=95.0))
+    assert got == {'kc': 95.0}
+    # springs following k that no longer agree: each reads back its own
+    got = live_values(_getter(force_a3=[0.0, 5.0], force_a4=[0.0, 5.0]),
+                      live.with_(ka=110.0))
+    assert got == {'ka': 110.0, 'kb': 100.0, 'kc': 100.0}

@@ -105,10 +105,9 @@ class DynamicSimulator(Simulator):
                          float(theta[0]), float(theta[1]), float(rate[0]), float(rate[1]),
                          float(m.actuator_forces[index]))
 
-    def loads(self, index):
-        """The forces on the moving rods now (a load change acts on them at once)."""
-        p = self._moving_modules()[index]
-        return (p.f3x, p.f3y), (p.f4x, p.f4y)
+    def design(self, index):
+        """The design and loads of the moving rods now (a change acts on them at once)."""
+        return self._moving_modules()[index]
 
     def module_nodes(self, index):
         """A1..A4 (4, 2) now: of the moving rods, or of the verified rest state."""

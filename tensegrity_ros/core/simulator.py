@@ -214,11 +214,10 @@ class Simulator:
         else the live ones."""
         return self._goals()[index]
 
-    def loads(self, index):
-        """((f3x, f3y), (f4x, f4y)): the forces at A3 and A4 of module ``index`` now (those
-        of the pending paths' end while one is tracked)."""
-        p = self.goal(index)
-        return (p.f3x, p.f3y), (p.f4x, p.f4y)
+    def design(self, index):
+        """The ModuleParams of module ``index`` in effect now (design and loads; those of the
+        pending paths' end while one is tracked): what its parameters should read."""
+        return self.goal(index)
 
     def module_nodes(self, index):
         """A1..A4 of a module, (4, 2), in the base frame of the bottom module."""

@@ -486,7 +486,7 @@ class TensegrityNode(Node):
                 moving = [k for k in keys
                           if params.kind_of(k) in (params.PHYSICAL, params.FORCE)]
                 if moving:
-                    changes[i] = params.design_changes(get, self._sim.goal(i), moving)
+                    changes[i] = params.design_changes(get, self._sim.design(i), moving)
                     changed_names += [f'{m}.{k}' for k in moving]
             if changes:
                 cause = 'parameter ' + ', '.join(sorted(changed_names))
@@ -710,9 +710,9 @@ class TensegrityNode(Node):
 
     def _command(self, outcome, source, now_ns, loads=False):
         """Report a command's outcome: a refusal is counted and dropped; otherwise its
-        events are published and the new state goes out stamped ``now_ns``; the force
-        parameters follow the loads if the command set them (``loads``) or a path
-        stopped early."""
+        events are published and the new state goes out stamped ``now_ns``; the design and
+        force parameters follow the live values if the command set them (``loads``) or a
+        path stopped early."""
         if not outcome.accepted:
             return self._reject(outcome.reason, f'{source}: {outcome.message}')
         self._counters['commands_processed'] += 1

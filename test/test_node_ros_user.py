@@ -319,3 +319,23 @@ def test_live_values_are_what_no_longer_reads_back():
     got = live_values(_getter(force_a3=[0.0, 5.0], force_a4=[0.0, 5.0]),
                       live.with_(ka=110.0))
     assert got == {'ka': 110.0, 'kb': 100.0, 'kc': 100.0}
+
+
+def test_dynamics_mode_a_parameter_change_keeps_a_force_sent_during_the_motion(harness):
+    """The rods move (dynamics mode); a force message, then a design change, both while
+    they move: the change starts from the live design, so the message's load stays (it
+    started from the last rest state and undid it before), and the parameter reads it."""
+    from test_node_dynamics import dynamics_overrides
+    h = harness(dynamics_overrides(**{'m0.rho_initial': 0.5, 'm0.max_rho_rate': 0.02})).ready()
+    h.rho_pub.publish(h.rho_pub.msg_type(data=0.6))                  # 5 s of motion
+    h.spin_until(lambda: not h.stable[-1].data, what='the rods moving')
+    h.force_pubs['a3'].publish(Vector3(x=0.0, y=4.0, z=0.0))
+    h.spin_until(lambda: list(h.node.get_parameter('m0.force_a3').value) == [0.0, 4.0],
+                 what='force_a3 read back during the motion')
+    result = h.node.set_parameters([Parameter('m0.L2', value=1.01)])[0]
+    assert result.successful, result.reason
+    assert h.node.simulator.moving
+    h.spin_until(lambda: h.stable[-1].data, timeout=60, what='the rods at rest')
+    v = h.wait_status(lambda v: float(v['rho']) == 0.6)
+    assert float(v['f3y']) == 4.0 and float(v['L2']) == 1.01
+    assert list(h.node.get_parameter('m0.force_a3').value) == [0.0, 4.0]

@@ -1052,13 +1052,7 @@ def main(argv=None):
     except KeyboardInterrupt:
         sys.stderr.write(f'{prog}: interrupted\n')
         return 130
-    except ImportError as exc:           # PNG output without the tools extra
-        missing = (exc.name or str(exc)).split('.')[0]
-        sys.stderr.write(f'{prog}: error: {missing} is not installed: figures and the '
-                         f'progress bar need the tools extra (pip install '
-                         f'"tensegrity_ros[tools]", or make setup)\n')
-        return EXIT_FAILURE
-    except (OSError, RuntimeError) as exc:
+    except (OSError, RuntimeError, ImportError) as exc:     # ImportError: no tools extra
         sys.stderr.write(f'{prog}: error: {exc}\n')
         return EXIT_FAILURE
     except Exception as exc:             # a bug of ours: still one line, never a traceback

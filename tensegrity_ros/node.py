@@ -4,7 +4,8 @@ What the mechanism does -- targets, speed limits, loads, parameter changes, rese
 tracking, jumps, verification -- is decided by :class:`tensegrity_ros.core.simulator.
 Simulator` (one module or a neck, one code path, tested without ROS).  This node only maps:
 
-* parameters -> the simulator's configuration (:mod:`tensegrity_ros.node_parameters`);
+* parameters -> the simulator's configuration (:mod:`tensegrity_ros.node_parameters`; the
+  callbacks that check, apply and read them back: :mod:`tensegrity_ros.parameter_handling`);
 * messages -> simulator calls (``<m>/rho_cmd``, ``<m>/force_a3/a4``, ``joint_commands``,
   ``joint_trajectory`` through the core's :class:`~tensegrity_ros.core.trajectory.
   TrajectoryPlayer`, runtime parameter sets, the ``~/reset`` service, the timer);
@@ -22,7 +23,6 @@ Run:  ``python -m tensegrity_ros.node --ros-args --params-file config/default.ya
 from __future__ import annotations
 
 import os
-import re
 import signal
 import sys
 import time
@@ -36,17 +36,13 @@ if __name__ == '__main__' or os.path.basename(sys.argv[0]) == 'tensegrity_node':
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, Vector3
-from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
-                              ParameterException)
 import rclpy.executors
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 import rclpy.logging
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 import rclpy.utilities
@@ -57,17 +53,17 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from tensegrity_ros import node_parameters as params
+from tensegrity_ros import node_process as process
 from tensegrity_ros import ros_conversions as conv
 from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog, force_key,
                                                     target_key)
-from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.events import Deferred, FAILED, Jump, JumpAhead, Passage, TrackingFailure
 from tensegrity_ros.core.frames import chord_frames
-from tensegrity_ros.core.simulator import Simulator
 from tensegrity_ros.core.stack import Stack
 from tensegrity_ros.core.trajectory import ABORTED, MotionEnded, TrajectoryPlayer
 from tensegrity_ros.joint_state_names import exact_names, NamesAndPositions
 from tensegrity_ros.log_text import clipped, shown
+from tensegrity_ros.parameter_handling import ConfigurationError, ParameterHandling
 from tensegrity_ros.params_file import check_parameter_file, ConfigError
 
 try:                            # every ROS install has it; the PyPI wheels do not
@@ -139,14 +135,8 @@ REJECT_REASONS = (
 TRAJECTORY_COUNTERS = ('trajectories_accepted', 'trajectories_succeeded',
                        'trajectories_aborted', 'trajectories_canceled')
 
-_MODULE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 
-
-class ConfigurationError(RuntimeError):
-    """The node's start-up configuration (parameters) cannot be used."""
-
-
-class TensegrityNode(Node):
+class TensegrityNode(ParameterHandling, Node):
     """ROS 2 node around a core :class:`Simulator`: parameters -> its configuration,
     messages -> its calls, its outcomes -> publishers and logs.
 
@@ -210,8 +200,7 @@ class TensegrityNode(Node):
         joint_states relative, so that namespaces and remapping work (/diagnostics and /tf
         are absolute by ROS convention).  No per-endpoint QoS event handlers: each is a
         waitable the executor re-adds to its wait set before every callback (about 20 us
-        each); QoS
-        mismatches are still reported by the peer.
+        each); QoS mismatches are still reported by the peer.
         """
         def publisher(msg_type, topic, qos):
             return self.create_publisher(
@@ -239,10 +228,8 @@ class TensegrityNode(Node):
         self._markers_pub = publisher(MarkerArray, '~/markers', MARKERS_QOS)
         self._head_pub = publisher(PoseStamped, '~/head_pose', HEAD_QOS)
         self._motion_pub = publisher(DiagnosticStatus, '~/motion', MOTION_QOS)
-        self._tf_pub = None
-        if TFMessage is not None:
-            self._tf_pub = publisher(TFMessage, '/tf', TF_QOS)
-        else:
+        self._tf_pub = publisher(TFMessage, '/tf', TF_QOS) if TFMessage is not None else None
+        if self._tf_pub is None:
             self.get_logger().info('tf2_msgs is not installed: no TF on /tf (markers and '
                                    'head_pose carry the frame); a ROS install has it')
 
@@ -259,17 +246,8 @@ class TensegrityNode(Node):
         # (fewer wait-set entities = less executor overhead per command).
         self._tick_timer = self.create_timer(
             1.0 / self.get_parameter('publish_rate').value, self._guard(self._on_tick, 'timer'))
-        self._periodic = {}         # name -> [period_ns or 0 (off), next due ns]
-        now = self._now_ns()
-        for name in ('markers_rate', 'diagnostics_rate'):
-            self._periodic[name] = [0, now]
-            self._set_periodic(name, self.get_parameter(name).value, now)
         self._set_frames()
-        self._designs = [self._sim.design(i) for i in range(len(self._names))]
-
-        self.add_pre_set_parameters_callback(self._pre_set_parameters)
-        self.add_on_set_parameters_callback(self._validate_parameters)
-        self.add_post_set_parameters_callback(self._apply_parameters)
+        self._watch_parameters()
 
     def _check_name_unique(self):
         """Start-up: WARN once if another node in the graph has this fully qualified name
@@ -286,250 +264,6 @@ class TensegrityNode(Node):
         if same > 1 or self._name_checks <= 0:
             self._name_timer.cancel()
             self.destroy_timer(self._name_timer)
-
-    # -- start-up: parameters -> simulator ---------------------------------------------
-
-    def _declare_modules(self):
-        try:
-            names = self.declare_parameter(
-                'modules', ['m0'],
-                params.descriptor(
-                    'Hosted modules, bottom to top (names of topics and parameter '
-                    'prefixes). Read-only. One module, or a stack (neck) of up to '
-                    f'{params.MAX_MODULES}: module i+1 sits on the top chord of module i.',
-                    type_=params.STRING_ARRAY, read_only=True,
-                    constraints=f'1..{params.MAX_MODULES} distinct module names')).value
-        except ParameterException as exc:
-            raise ConfigurationError(f'parameter modules: {exc}') from None
-        names = list(names or [])
-        if not 1 <= len(names) <= params.MAX_MODULES:
-            raise ConfigurationError(
-                f'modules: {len(names)} modules given; a node hosts 1 to {params.MAX_MODULES} '
-                f'modules (bottom to top), e.g. [m0] or [m0, m1, m2]')
-        if len(set(names)) != len(names):
-            raise ConfigurationError(f'modules={names}: module names must be distinct')
-        for m in names:
-            if not _MODULE_NAME.match(m):
-                raise ConfigurationError(
-                    f'module name {shown(m)}: use a letter followed by letters, digits or _')
-        return names
-
-    def _coerce_overrides(self, types):
-        """Integers given for double parameters (``L1: 1`` in YAML) are taken as doubles."""
-        overrides = self._parameter_overrides
-        for name, type_ in types.items():
-            p = overrides.get(name)
-            if p is None:
-                continue
-            if type_ == params.DOUBLE and p.type_ == Parameter.Type.INTEGER:
-                overrides[name] = Parameter(name, params.DOUBLE, float(p.value))
-            elif type_ == params.DOUBLE_ARRAY and p.type_ == Parameter.Type.INTEGER_ARRAY:
-                overrides[name] = Parameter(name, params.DOUBLE_ARRAY,
-                                            [float(v) for v in p.value])
-
-    def _declare_parameters(self):
-        self._coerce_overrides(params.parameter_types(self._names))
-        declarations = params.declarations(self._names)
-        self._declared = [name for name, _, _ in declarations]
-        for name, default, descriptor in declarations:
-            try:
-                self.declare_parameter(name, default, descriptor)
-            except (InvalidParameterTypeException, InvalidParameterValueException,
-                    ParameterException) as exc:
-                raise ConfigurationError(f'parameter {name}: {exc}') from None
-        values = self._current_values()
-        reason = params.check_node_values(values, self._names) or next(
-            (r for r in (params.check_module_values(m, params.module_getter(m, values))
-                         for m in self._names) if r), '')
-        if reason:
-            raise ConfigurationError(reason)
-
-    def _warn_unknown_overrides(self):
-        known = set(self._declared) | {'modules', 'use_sim_time'}
-        for name in sorted(set(self._parameter_overrides) - known):
-            self.get_logger().warning(f'ignoring unknown parameter {shown(name)}')
-
-    def _initial_configuration(self):
-        """(modules at rho_initial, initial_theta of each) from the parameter values."""
-        getters = [params.module_getter(m, self._current_values()) for m in self._names]
-        return ([params.initial_params(get) for get in getters],
-                [get('initial_theta') for get in getters])
-
-    def _start_simulator(self):
-        modules, thetas = self._initial_configuration()
-        values = self._current_values()
-        limits = [params.module_limits(params.module_getter(m, values)) for m in self._names]
-        try:
-            if self._dynamics:
-                return DynamicSimulator(modules, thetas, limits, names=self._names,
-                                        damping=[params.module_getter(m, values)('damping')
-                                                 for m in self._names])
-            return Simulator(modules, thetas, limits, names=self._names)
-        except ValueError as exc:
-            raise ConfigurationError(
-                f'{", ".join(self._names)} at rho_initial {[m.rho for m in modules]}, '
-                f'initial_theta {thetas}: {exc}') from None
-
-    # -- parameters at runtime ----------------------------------------------------------
-
-    def _current_values(self):
-        return {p.name: p.value for p in self.get_parameters(self._declared)}
-
-    def _pre_set_parameters(self, parameters):
-        """Runs before rclpy's own checks: coerce int -> double, count what rclpy will refuse."""
-        if self._mirroring:
-            return parameters
-        try:
-            out = []
-            for p in parameters:
-                if not self.has_parameter(p.name):
-                    self._reject('parameter_undeclared', f'no parameter named {shown(p.name)}')
-                    out.append(p)
-                    continue
-                if p.type_ == Parameter.Type.NOT_SET:
-                    # rclpy refuses it too ("Static parameter cannot be undeclared")
-                    self._reject('parameter_delete',
-                                 f'{p.name}: parameters of this node cannot be deleted (each '
-                                 f'is declared with a type and a descriptor); set a value')
-                    out.append(p)
-                    continue
-                d = self.describe_parameter(p.name)
-                if d.type == params.DOUBLE.value and p.type_ == Parameter.Type.INTEGER:
-                    p = Parameter(p.name, params.DOUBLE, float(p.value))
-                elif d.type == params.DOUBLE_ARRAY.value and \
-                        p.type_ == Parameter.Type.INTEGER_ARRAY:
-                    p = Parameter(p.name, params.DOUBLE_ARRAY, [float(v) for v in p.value])
-                if d.read_only:
-                    self._reject('parameter_read_only', f'{p.name} is read-only')
-                elif p.type_.value != d.type:
-                    self._reject('parameter_type',
-                                 f'{p.name}: wrong type {p.type_.name}, expected '
-                                 f'{Parameter.Type(d.type).name}')
-                elif d.floating_point_range and p.type_ == params.DOUBLE:
-                    r = d.floating_point_range[0]
-                    if not r.from_value <= p.value <= r.to_value:
-                        self._reject('parameter_value',
-                                     f'{p.name}={p.value!r} outside [{r.from_value}, '
-                                     f'{r.to_value}]')
-                out.append(p)
-            return out
-        except Exception as exc:        # never raise into rclpy
-            self._count_exception('pre-set parameters', exc)
-            return parameters
-
-    def _validate_parameters(self, parameters):
-        """on-set callback: accept or refuse (with a reason) without changing any state."""
-        if self._mirroring:
-            return SetParametersResult(successful=True)
-        try:
-            reason = self._refusal(parameters)
-        except Exception as exc:
-            self._count_exception('parameter validation', exc)
-            reason = f'internal error while validating: {exc!r}'
-        if reason:
-            self._reject('parameter_value', f'parameter change refused: {reason}')
-            return SetParametersResult(successful=False, reason=reason)
-        return SetParametersResult(successful=True)
-
-    def _refusal(self, parameters):
-        values = self._current_values()
-        for p in parameters:
-            if p.type_ == Parameter.Type.NOT_SET:
-                return f'{p.name} cannot be unset'
-            values[p.name] = p.value
-        reason = params.check_node_values(values, self._names)
-        if reason:
-            return reason
-        for i in self._affected_modules(parameters):
-            m = self._names[i]
-            get = params.module_getter(m, values)
-            reason = params.check_module_values(m, get)
-            if reason:
-                return reason
-            reason = self._sim.limits_refusal(i, get('rho_min'), get('rho_max'))
-            if reason:
-                return f'{m}: {reason}'
-        return ''
-
-    def _affected_modules(self, parameters):
-        """{module index: [changed keys]} of the module parameters in ``parameters``."""
-        affected = {}
-        for p in parameters:
-            m, _, key = p.name.partition('.')
-            if key and m in self._names:
-                affected.setdefault(self._names.index(m), []).append(key)
-        return affected
-
-    def _apply_parameters(self, parameters):
-        """post-set callback: node settings; module settings; then every physical or
-        force change of the set on one tracked path."""
-        if self._mirroring:
-            return
-        try:
-            names = {p.name for p in parameters}
-            if 'publish_rate' in names:
-                self._tick_timer.timer_period_ns = int(1e9 / self.get_parameter(
-                    'publish_rate').value)
-            for name in ('markers_rate', 'diagnostics_rate'):
-                if name in names:
-                    self._set_periodic(name, self.get_parameter(name).value, self._now_ns())
-            if names & {'frame_id', 'frame_prefix'}:
-                self._set_frames()
-            values, now = self._current_values(), self._now_ns()
-            changes, changed_names = {}, []
-            for i, keys in self._affected_modules(parameters).items():
-                m = self._names[i]
-                get = params.module_getter(m, values)
-                self._report(self._sim.set_limits(i, params.module_limits(get), now))
-                if self._dynamics and 'damping' in keys:
-                    self._report(self._sim.set_damping(i, get('damping'), now))
-                moving = [k for k in keys
-                          if params.kind_of(k) in (params.PHYSICAL, params.FORCE)]
-                if moving:
-                    changes[i] = params.design_changes(get, self._sim.design(i), moving)
-                    changed_names += [f'{m}.{k}' for k in moving]
-            if changes:
-                cause = 'parameter ' + ', '.join(sorted(changed_names))
-                self._command(self._sim.set_parameters(changes, now, cause), 'parameters',
-                              now, loads=True)
-            self._publish_statuses_if_changed()
-        except Exception as exc:
-            self._count_exception('parameter change', exc)
-
-    def _sync_parameters(self):
-        """The design and force parameters read back the live values, whatever set them (a
-        force message, a parameter, a path stopped early): set those that differ (one
-        /parameter_events message), bypassing the set callbacks."""
-        changed = []
-        values = None
-        for i, m in enumerate(self._names):
-            design = self._sim.design(i)
-            if design == self._designs[i]:
-                continue
-            self._designs[i] = design
-            values = values or self._current_values()
-            for key, value in params.live_values(params.module_getter(m, values),
-                                                 design).items():
-                changed.append(Parameter(f'{m}.{key}', value=value))
-        if changed:
-            self._mirroring = True
-            try:
-                self.set_parameters_atomically(changed)
-            finally:
-                self._mirroring = False
-
-    def _set_frames(self):
-        """Frame names from frame_prefix and frame_id: the root, each top chord, the head."""
-        self._frame_id, chords, head = params.frame_names(
-            self.get_parameter('frame_prefix').value, self.get_parameter('frame_id').value,
-            self._names)
-        self._tf = conv.FrameChain(self._frame_id, chords + [head])
-
-    def _set_periodic(self, name, rate, now_ns):
-        """markers_rate / diagnostics_rate: served by the publish_rate timer (0 = off)."""
-        entry = self._periodic[name]
-        entry[0] = int(1e9 / rate) if rate > 0.0 else 0
-        entry[1] = now_ns + entry[0]
 
     # -- callbacks, rejections ------------------------------------------------------------
 
@@ -844,6 +578,13 @@ class TensegrityNode(Node):
         self._publish_motion()
         self._on_markers_tick()
 
+    def _set_frames(self):
+        """Frame names from frame_prefix and frame_id: the root, each top chord, the head."""
+        self._frame_id, chords, head = params.frame_names(
+            self.get_parameter('frame_prefix').value, self.get_parameter('frame_id').value,
+            self._names)
+        self._tf = conv.FrameChain(self._frame_id, chords + [head])
+
     def _publish_tf(self, now_ns):
         """/tf: frame_id -> each module's top chord -> head (core.frames), stamped now."""
         if self._tf_pub is None:
@@ -977,62 +718,6 @@ class TensegrityNode(Node):
         return dict(self._counters)
 
 
-def _make_executor(kind):
-    """The executor ``main`` spins: ``events`` (default) or ``single``.
-
-    ``events`` is rclpy's C++ events executor (``rclpy.experimental.EventsExecutor``,
-    shipped with Jazzy's rclpy): it dispatches a callback for a fraction of the Python
-    SingleThreadedExecutor's per-callback cost, which is what lets the node keep up with
-    1 kHz commands.  ``single`` is the classic ``rclpy.spin`` executor.
-    """
-    if kind == 'events':
-        try:
-            from rclpy.experimental import EventsExecutor
-            return EventsExecutor()
-        except ImportError:           # an rclpy without it: fall back
-            pass
-    return rclpy.executors.SingleThreadedExecutor()
-
-
-def _parse_cli(argv):
-    import argparse
-    parser = argparse.ArgumentParser(
-        prog='tensegrity_node',
-        description='Tensegrity module node: tracks the stable equilibrium, reports jumps. '
-                    'ROS arguments follow --ros-args (e.g. --params-file config/default.yaml).')
-    parser.add_argument('--executor', choices=('events', 'single'), default='events',
-                        help='events: rclpy EventsExecutor (fast, default); '
-                             'single: SingleThreadedExecutor (rclpy.spin)')
-    return parser.parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
-
-
-class _Interrupt:
-    """SIGINT/SIGTERM handler behind rclpy's (which shuts the context down, then calls
-    this): while starting, stop at once (KeyboardInterrupt); once spinning, do nothing --
-    the shut-down context ends the spin loop, while an exception raised here would land
-    inside whatever callback is running (the events executor then logs it as FATAL)."""
-
-    def __init__(self):
-        self.spinning = False
-
-    def __call__(self, signum, frame):
-        if not self.spinning:
-            raise KeyboardInterrupt
-
-
-def _parameter_files(argv):
-    """The ``--params-file`` paths among the ROS arguments of ``argv``."""
-    paths, in_ros_args = [], False
-    for i, arg in enumerate(argv):
-        if arg == '--ros-args':
-            in_ros_args = True
-        elif arg == '--':
-            in_ros_args = False
-        elif in_ros_args and arg == '--params-file' and i + 1 < len(argv):
-            paths.append(argv[i + 1])
-    return paths
-
-
 def _fatal(text):
     """One FATAL log line (the exit status 2 path of an unusable configuration)."""
     rclpy.logging.get_logger(DEFAULT_NODE_NAME).fatal(clipped(f'invalid configuration: {text}'))
@@ -1042,9 +727,9 @@ def main(args=None):
     """Entry point of ``tensegrity_node``: 0 on normal exit or Ctrl-C, 2 on a bad configuration."""
     argv = sys.argv if args is None else args
     try:
-        for path in _parameter_files(argv):
+        for path in process.parameter_files(argv):
             check_parameter_file(path)
-        options = _parse_cli(argv)
+        options = process.parse_cli(argv)
     except ConfigError as exc:
         _fatal(exc)
         return 2
@@ -1056,12 +741,12 @@ def main(args=None):
     try:
         # SIGINT and SIGTERM: rclpy's handlers, installed by rclpy.init, shut the context
         # down first and then chain to this one.
-        interrupt = _Interrupt()
+        interrupt = process.Interrupt()
         signal.signal(signal.SIGINT, interrupt)
         signal.signal(signal.SIGTERM, interrupt)
         rclpy.init(args=argv)
         node = TensegrityNode()
-        executor = _make_executor(options.executor)
+        executor = process.make_executor(options.executor)
         executor.add_node(node)
         interrupt.spinning = True
         # spin_once in a loop rather than spin(): the events executor's spin() does not
@@ -1079,25 +764,10 @@ def main(args=None):
         if rclpy.ok():
             raise
     finally:
-        _quietly(executor.shutdown if executor is not None else None)
-        _quietly(node.destroy_node if node is not None else None)
-        _quietly(rclpy.try_shutdown)
+        process.quietly(executor.shutdown if executor is not None else None)
+        process.quietly(node.destroy_node if node is not None else None)
+        process.quietly(rclpy.try_shutdown)
     return 0
-
-
-def _quietly(cleanup):
-    """Run a clean-up step; tolerate the signal handler shutting the context concurrently.
-
-    rclpy's SIGINT/SIGTERM handler shuts the context down from its own thread: a
-    ``try_shutdown`` racing with it can raise "rcl_shutdown already called".
-    """
-    if cleanup is None:
-        return
-    try:
-        cleanup()
-    except Exception:
-        if rclpy.ok():
-            raise
 
 
 if __name__ == '__main__':

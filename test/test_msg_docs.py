@@ -118,6 +118,36 @@ def test_unloaded_actuator_force(harness):
     assert state[0] == float(rho) and state[3] == pytest.approx(float(force), abs=1e-9)
 
 
+def test_trajectory_example_and_motion_messages(harness):
+    """joint_trajectory.md's ros2 topic pub line on fig. 8a's lower branch: C1 crossed on the
+    way (a jump caused by the trajectory), and ~/motion's messages as motion.md shows them."""
+    from builtin_interfaces.msg import Duration
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    text = page('joint_trajectory.md')
+    fields = yaml.safe_load(re.search(r'JointTrajectory \\\n\s*"(\{.*\})"', text).group(1))
+    msg = JointTrajectory(joint_names=fields['joint_names'], points=[
+        JointTrajectoryPoint(positions=[float(v) for v in p['positions']],
+                             time_from_start=Duration(**p['time_from_start']))
+        for p in fields['points']])
+    c1 = re.search(r'the branch point C1 at rho = ([\d.]+)', text).group(1)
+    h = harness(fig8a_overrides()).ready()
+    motion = []
+    h.client.create_subscription(DiagnosticStatus, h.private('motion'), motion.append,
+                                 LATCHED_QOS)
+    pub = h.client.create_publisher(JointTrajectory, 'joint_trajectory', PUB_QOS)
+    h.spin_until(lambda: pub.get_subscription_count() > 0 and motion, what='~/motion')
+    pub.publish(msg)
+    h.spin_until(lambda: motion[-1].message.startswith('succeeded'), timeout=60,
+                 what='the trajectory to succeed')
+    jump = values(h.jumps[-1])
+    assert jump['cause'] == 'joint_trajectory' and agrees(c1 + '...', jump['rho'])
+    shown = re.search(r'\| `message` \| `<state>: <what>`, e\.g\. (.*) \|', page('motion.md'))
+    examples = re.findall(r'`([^`]*)`', shown.group(1))
+    said = [m.message for m in motion]
+    assert examples[0] in said and examples[1] in said, (examples, said)
+
+
 # ---------------------------------------------------------------------------
 # examples of the neck (config/neck.yaml)
 

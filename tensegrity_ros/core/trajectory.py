@@ -177,8 +177,7 @@ class TrajectoryPlayer:
             state=EXECUTING, number=self._count, joints=tuple(trajectory.joints),
             goal=tuple(trajectory.positions[-1]), duration=trajectory.duration_ns * 1e-9,
             points=len(trajectory.times_ns),
-            text=f'executing {len(trajectory.times_ns)} points over '
-                 f'{trajectory.duration_ns * 1e-9:.6g} s')
+            text=f'{len(trajectory.times_ns)} points over {trajectory.duration_ns * 1e-9:.6g} s')
         return ev.combined([replaced, self._sample(now_ns)])
 
     def refusal(self, trajectory):

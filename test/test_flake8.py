@@ -35,6 +35,7 @@ PATHS = [str(ROOT / p) for p in (
     'tensegrity_ros/module_parameters.py', 'tensegrity_ros/core/trajectory.py',
     'tensegrity_ros/core/frames.py',
     'test/conftest.py', 'test/test_flake8.py', 'test/test_pep257.py', 'test/test_frames.py',
+    'test/test_doc_links.py',
     'test/test_import_layers.py', 'test/test_launch_files.py', 'test/test_msg_docs.py',
     'test/test_node.py', 'test/test_node_dynamics.py', 'test/test_node_hardening.py',
     'test/test_node_neck.py', 'test/test_node_neck_corners.py', 'test/test_node_process.py',

@@ -1,0 +1,471 @@
+"""Stable branches of many one-module samples followed at once (numpy), for tolerance
+studies: the operating range and a planned path of thousands of samples in one pass.
+
+Each sample moves along its own straight parameter path P(s) = P0 + s dP (the range:
+rho = s; a command leg: s from 0 to 1).  The module's gradient and Hessian are linear in
+five path coefficients, A1 = L1 ((ka + kc) rho + f3x), A2 = L2 ((kb + kc) rho - f4x),
+C1 = L1 F3, C2 = L2 F4 (vertical loads with the rods' weights), K = kc L1 L2:
+
+    g1 = A1 sin t1 - K sin(t1 + t2) - C1 cos t1      h11 = A1 cos t1 - K cos(t1 + t2) + C1 sin t1
+    g2 = A2 sin t2 - K sin(t1 + t2) - C2 cos t2      h22 = A2 cos t2 - K cos(t1 + t2) + C2 sin t2
+                                                      h12 = -K cos(t1 + t2)
+
+so every row's branch is followed as :func:`.operation_range.operation_range` follows one
+(tangent predictor, Newton corrector, a step bounded so that lambda_min is predicted to
+at most halve and the angles move at most 0.15 rad), and an end is solved for on the
+regular fold system {G = 0, det H = 0} in (theta, s) by Newton and accepted only where it
+lies ahead of the branch, near the predicted configuration.  A jump lands on the one
+other stable equilibrium at the fold's parameters (a module has at most two).
+
+The vectorised path takes the generic rows only.  Every delicate row goes to the scalar
+reference (``question.evaluate_one``): an exact symmetry (its ends are branch points,
+solved on restricted systems there), a step that keeps failing (a nearly symmetric branch
+point), an end that is not a fold, a landing that is not the one other minimum, no
+unique stable start.  So both give the same answer; test_tolerance_batch checks it.
+Each row's arithmetic depends on that row only (finished rows are frozen, never updated
+with the others), so a sample's answer does not depend on its chunk.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .batch_solver import equilibria_batch
+from .module import PARAMETER_NAMES
+
+#: A row within this fraction of the path's length scale of a bound has reached it
+#: (operation_range's BOUND_TOL).
+BOUND_TOL = 1e-8
+#: Give up on the vectorised path for a row after this many steps (scalar fallback).
+MAX_STEPS = 2000
+#: Most jumps followed on one leg before the row goes to the scalar path.
+MAX_EVENTS = 8
+#: Kinds of a branch end.
+FOLD, LIMIT = 0, 2
+
+_I = {name: i for i, name in enumerate(PARAMETER_NAMES)}
+
+
+class _Family:
+    """The path coefficients of rows moving along P0 + s dP (arrays (m, 12))."""
+
+    def __init__(self, p0, dp, g):
+        self.p0 = np.asarray(p0, dtype=float)
+        self.dp = np.asarray(dp, dtype=float)
+        self.g = g
+
+    def at(self, idx, s):
+        """(A1, A2, C1, C2, K, dA1, dA2, dC1, dC2, dK, scale) of rows ``idx`` at ``s``."""
+        d = self.dp[idx]
+        p = self.p0[idx] + s[:, None] * d
+        rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y, m1, m2 = p.T
+        drho, dL1, dL2, dka, dkb, dkc, df3x, df3y, df4x, df4y, dm1, dm2 = d.T
+        half_g = 0.5 * self.g
+        F3 = f3y - half_g * m1
+        F4 = f4y - half_g * m2
+        a1 = (ka + kc) * rho + f3x
+        a2 = (kb + kc) * rho - f4x
+        da1 = (dka + dkc) * rho + (ka + kc) * drho + df3x
+        da2 = (dkb + dkc) * rho + (kb + kc) * drho - df4x
+        K = kc * L1 * L2
+        out = (L1 * a1, L2 * a2, L1 * F3, L2 * F4, K,
+               dL1 * a1 + L1 * da1, dL2 * a2 + L2 * da2,
+               dL1 * F3 + L1 * (df3y - half_g * dm1), dL2 * F4 + L2 * (df4y - half_g * dm2),
+               dkc * L1 * L2 + kc * dL1 * L2 + kc * L1 * dL2,
+               np.maximum(L1, L2) * np.maximum.reduce(
+                   [np.abs(a1), np.abs(a2), kc * np.maximum(L1, L2), np.abs(F3), np.abs(F4)]))
+        return out
+
+
+def _trig(t1, t2):
+    s1, c1, s2, c2 = np.sin(t1), np.cos(t1), np.sin(t2), np.cos(t2)
+    return s1, c1, s2, c2, s1 * c2 + c1 * s2, c1 * c2 - s1 * s2
+
+
+def _gh(c, t1, t2):
+    """(g1, g2, h11, h12, h22, K sin(t1 + t2), trig) for coefficients ``c``."""
+    A1, A2, C1, C2, K = c[:5]
+    s1, c1, s2, c2, s12, c12 = tr = _trig(t1, t2)
+    ks, kc = K * s12, K * c12
+    return (A1 * s1 - ks - C1 * c1, A2 * s2 - ks - C2 * c2,
+            A1 * c1 - kc + C1 * s1, -kc, A2 * c2 - kc + C2 * s2, ks, tr)
+
+
+def _eig2(h11, h12, h22):
+    """Ascending eigenvalues of the symmetric 2x2 matrices (small one accurate)."""
+    mean = 0.5 * (h11 + h22)
+    big = mean + np.copysign(np.hypot(0.5 * (h11 - h22), h12), mean)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        small = np.where(big == 0.0, 0.0, (h11 * h22 - h12 * h12) / big)
+    return np.minimum(small, big), np.maximum(small, big)
+
+
+def _mode(h11, h12, h22, lam):
+    """Unit eigenvectors of eigenvalue ``lam``."""
+    first = np.abs(lam - h11) >= np.abs(lam - h22)
+    a = np.where(first, h12, lam - h22)
+    b = np.where(first, lam - h11, h12)
+    n = np.hypot(a, b)
+    safe = n > 0
+    return np.where(safe, a / np.where(safe, n, 1.0), 1.0), np.where(safe, b / np.where(safe, n, 1.0), 0.0)
+
+
+def _wrap(a):
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _take(c, k):
+    return tuple(x[k] for x in c)
+
+
+def newton(c, t1, t2, max_iter=12):
+    """Newton on G = 0 at fixed parameters, per row (operation_range's _newton_theta):
+    (t1, t2, converged).  A row stops when its step falls below 1e-13 rad or its residual
+    is at rounding level; stopped rows are not touched again."""
+    t1, t2 = t1.copy(), t2.copy()
+    n = len(t1)
+    ok = np.zeros(n, bool)
+    active = np.arange(n)
+    tiny = 1e-13 * c[10]
+    residual = np.full(n, np.inf)
+    for _ in range(max_iter):
+        if active.size == 0:
+            break
+        ca = _take(c, active)
+        a1, a2 = t1[active], t2[active]
+        g1, g2, h11, h12, h22, _, _ = _gh(ca, a1, a2)
+        res = np.maximum(np.abs(g1), np.abs(g2))
+        residual[active] = res
+        det = h11 * h22 - h12 * h12
+        bad = (det == 0.0) | ~np.isfinite(det)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            d1 = np.where(bad, 0.0, (h22 * g1 - h12 * g2) / np.where(bad, 1.0, det))
+            d2 = np.where(bad, 0.0, (h11 * g2 - h12 * g1) / np.where(bad, 1.0, det))
+        size = np.abs(d1) + np.abs(d2)
+        at_rounding = ~bad & (res <= tiny[active]) & (size < 1e-6)
+        move = ~bad
+        t1[active[move]] = a1[move] - d1[move]
+        t2[active[move]] = a2[move] - d2[move]
+        converged = at_rounding | (move & (size < 1e-13))
+        diverged = move & ~converged & ((size > 1.0) | ~np.isfinite(size))
+        ok[active[converged]] = True
+        ok[active[bad]] = res[bad] <= tiny[active][bad]
+        active = active[~(bad | converged | diverged)]
+    if active.size:
+        ok[active] = residual[active] <= 10 * tiny[active]
+    return t1, t2, ok
+
+
+def _branch_state(c, t1, t2):
+    """At equilibria: (lambda_min, lambda_max, dtheta/ds, dlambda_min/ds)."""
+    A1, A2, C1, C2, K, dA1, dA2, dC1, dC2, dK, _ = c
+    g1, g2, h11, h12, h22, ks, (s1, c1, s2, c2, s12, c12) = _gh(c, t1, t2)
+    gs1 = dA1 * s1 - dK * s12 - dC1 * c1
+    gs2 = dA2 * s2 - dK * s12 - dC2 * c2
+    hs11 = dA1 * c1 - dK * c12 + dC1 * s1
+    hs22 = dA2 * c2 - dK * c12 + dC2 * s2
+    hs12 = -dK * c12
+    det = h11 * h22 - h12 * h12
+    zero = det == 0.0
+    safe = np.where(zero, 1.0, det)
+    dt1 = np.where(zero, 0.0, -(h22 * gs1 - h12 * gs2) / safe)
+    dt2 = np.where(zero, 0.0, -(h11 * gs2 - h12 * gs1) / safe)
+    lo, hi = _eig2(h11, h12, h22)
+    v1, v2 = _mode(h11, h12, h22, lo)
+    dh11 = hs11 - g1 * dt1 + ks * dt2
+    dh22 = hs22 + ks * dt1 - g2 * dt2
+    dh12 = hs12 + ks * (dt1 + dt2)
+    dlam = v1 * v1 * dh11 + 2 * v1 * v2 * dh12 + v2 * v2 * dh22
+    return lo, hi, dt1, dt2, dlam
+
+
+def _fold_newton(fam, idx, t1, t2, s, relative_s, max_iter=16):
+    """Newton on {G = 0, det H = 0} in (t1, t2, s) per row (analytic Jacobian):
+    (t1, t2, s, converged)."""
+    t1, t2, s = t1.copy(), t2.copy(), s.copy()
+    n = len(t1)
+    ok = np.zeros(n, bool)
+    active = np.arange(n)
+    for _ in range(max_iter):
+        if active.size == 0:
+            break
+        a1, a2, sa = t1[active], t2[active], s[active]
+        c = fam.at(idx[active], sa)
+        dA1, dA2, dC1, dC2, dK = c[5:10]
+        g1, g2, h11, h12, h22, ks, (s1, c1, s2, c2, s12, c12) = _gh(c, a1, a2)
+        gs1 = dA1 * s1 - dK * s12 - dC1 * c1
+        gs2 = dA2 * s2 - dK * s12 - dC2 * c2
+        hs11 = dA1 * c1 - dK * c12 + dC1 * s1
+        hs22 = dA2 * c2 - dK * c12 + dC2 * s2
+        hs12 = -dK * c12
+        scale_h = np.maximum.reduce([np.abs(h11), np.abs(h22), np.abs(h12),
+                                     np.full(len(a1), 1e-300)])
+        j31 = (-g1 * h22 + h11 * ks - 2 * h12 * ks) / scale_h
+        j32 = (ks * h22 - h11 * g2 - 2 * h12 * ks) / scale_h
+        j33 = (hs11 * h22 + h11 * hs22 - 2 * h12 * hs12) / scale_h
+        f3 = (h11 * h22 - h12 * h12) / scale_h
+        # Cramer's rule for [[h11, h12, gs1], [h12, h22, gs2], [j31, j32, j33]] d = -F
+        r1, r2, r3 = -g1, -g2, -f3
+        m11 = h22 * j33 - gs2 * j32
+        m12 = h12 * j33 - gs2 * j31
+        m13 = h12 * j32 - h22 * j31
+        det = h11 * m11 - h12 * m12 + gs1 * m13
+        bad = (det == 0.0) | ~np.isfinite(det)
+        safe = np.where(bad, 1.0, det)
+        d1 = (r1 * m11 - h12 * (r2 * j33 - gs2 * r3) + gs1 * (r2 * j32 - h22 * r3)) / safe
+        d2 = (h11 * (r2 * j33 - gs2 * r3) - r1 * m12 + gs1 * (h12 * r3 - r2 * j31)) / safe
+        d3 = (h11 * (h22 * r3 - r2 * j32) - h12 * (h12 * r3 - r2 * j31) + r1 * m13) / safe
+        t1[active] = a1 + d1
+        t2[active] = a2 + d2
+        s[active] = sa + d3
+        finite = np.isfinite(d1) & np.isfinite(d2) & np.isfinite(d3)
+        diverged = bad | ~finite | (np.abs(d1) + np.abs(d2) > 2.0)
+        denom = np.maximum(np.abs(s[active]), 1e-300) if relative_s else 1.0
+        size = np.abs(d1) + np.abs(d2) + np.abs(d3) / denom
+        s_g = c[10]
+        conditioned = (size < 1e-8) & (np.maximum(np.abs(g1), np.abs(g2)) <= 1e-13 * s_g) \
+            & (np.abs(f3) <= 1e-11)
+        converged = ~diverged & ((size < 1e-14) | conditioned)
+        ok[active[converged]] = True
+        active = active[~(diverged | converged)]
+    return t1, t2, s, ok
+
+
+def follow(fam, idx, t1, t2, s0, sigma, bound, scale_len, relative_s, stop_at_bound_exactly):
+    """Follow the stable branch of rows ``idx`` from (t1, t2) at s0 in direction sigma
+    (+1 / -1, per row) up to ``bound`` (per row).
+
+    Returns (s_end, t1_end, t2_end, kind, delicate): kind FOLD (the branch ends at a
+    fold: the critical configuration) or LIMIT (the bound reached, still stable);
+    ``delicate`` rows need the scalar path (their other outputs are meaningless)."""
+    m = len(idx)
+    s = s0.astype(float).copy()
+    t1, t2 = t1.astype(float).copy(), t2.astype(float).copy()
+    shrink = np.ones(m)
+    first_fail = np.full(m, np.inf)
+    tried = np.zeros(m, bool)
+    end_s, end_t1, end_t2 = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
+    kind = np.full(m, -1)
+    delicate = np.zeros(m, bool)
+    active = np.arange(m)
+    hmax = 0.1 * scale_len
+    for _ in range(MAX_STEPS):
+        if active.size == 0:
+            break
+        rows = idx[active]
+        sa, a1, a2, sg, bd = s[active], t1[active], t2[active], sigma[active], bound[active]
+        c = fam.at(rows, sa)
+        lo, hi, dt1, dt2, dlam = _branch_state(c, a1, a2)
+        rate = sg * dlam
+        with np.errstate(divide='ignore', invalid='ignore'):
+            est = np.where(rate < 0, lo / -rate, np.inf)
+        remaining = sg * (bd - sa)
+        scale_h = _hessian_scale(c)
+        done = np.zeros(active.size, bool)
+        # at the bound (a degeneracy closer to it than BOUND_TOL counts as the bound)
+        at_bound = remaining <= BOUND_TOL * scale_len[active]
+        if np.any(at_bound):
+            k = active[at_bound]
+            end_s[k], end_t1[k], end_t2[k], kind[k] = bound[k], t1[k], t2[k], LIMIT
+            done |= at_bound
+        near = ~done & ~tried[active] & ((est < 0.05 * scale_len[active]) | (lo < 1e-3 * scale_h))
+        if np.any(near):
+            tried[active[near]] = True
+            found, r, e1, e2 = _localise(fam, rows[near], a1[near], a2[near], sa[near],
+                                         sg[near], est[near], dt1[near], dt2[near],
+                                         relative_s)
+            inside = found & (sg[near] * (bd[near] - r) >= 0)
+            k = active[near][inside]
+            end_s[k], end_t1[k], end_t2[k], kind[k] = r[inside], e1[inside], e2[inside], FOLD
+            done[np.nonzero(near)[0][inside]] = True
+        speed = np.hypot(dt1, dt2)
+        lam_room = np.where(est < remaining * (1.0 - 1e-9), 0.5 * est, np.inf)
+        with np.errstate(divide='ignore'):
+            step = np.minimum(np.minimum(hmax[active], lam_room),
+                              0.15 / np.maximum(speed, 1e-300)) * shrink[active]
+        to_bound = step >= remaining
+        step = np.where(to_bound, remaining, step)
+        stuck = ~done & (shrink[active] < 1e-3) & np.isfinite(first_fail[active])
+        delicate[active[stuck]] = True
+        done |= stuck
+        go = ~done
+        if not np.any(go):
+            active = active[~done]
+            continue
+        g_idx = active[go]
+        st = step[go]
+        s_new = sa[go] + sg[go] * st
+        if stop_at_bound_exactly:
+            s_new = np.where(to_bound[go], bd[go], s_new)
+        p1 = a1[go] + sg[go] * st * dt1[go]
+        p2 = a2[go] + sg[go] * st * dt2[go]
+        cn = fam.at(rows[go], s_new)
+        n1, n2, ok = newton(cn, p1, p2)
+        close = ok & (np.abs(_wrap(n1 - p1)) <= 0.05 + 0.5 * st * speed[go]) \
+            & (np.abs(_wrap(n2 - p2)) <= 0.05 + 0.5 * st * speed[go])
+        good = close.copy()
+        if np.any(close):
+            _, _, h11, h12, h22, _, _ = _gh(_take(cn, close), n1[close], n2[close])
+            lam_new = _eig2(h11, h12, h22)[0]
+            good[close] = (lam_new > 0.0) | (to_bound[go][close]
+                                              & (lam_new > -1e-12 * scale_h[go][close]))
+        bad_rows, good_rows = g_idx[~good], g_idx[good]
+        first_fail[bad_rows] = np.minimum(first_fail[bad_rows], st[~good])
+        shrink[bad_rows] *= 0.25
+        shrink[good_rows] = np.minimum(1.0, 2.0 * shrink[good_rows])
+        first_fail[good_rows] = np.inf
+        tried[good_rows] = False
+        s[good_rows], t1[good_rows], t2[good_rows] = s_new[good], n1[good], n2[good]
+        active = active[~done]
+    delicate[active] = True
+    return end_s, end_t1, end_t2, kind, delicate
+
+
+def _hessian_scale(c):
+    A1, A2, C1, C2, K = c[:5]
+    return np.maximum.reduce([np.abs(A1) + np.abs(C1) + K, np.abs(A2) + np.abs(C2) + K])
+
+
+def _localise(fam, rows, t1, t2, s, sigma, est, dt1, dt2, relative_s):
+    """The fold ahead of each row, validated as operation_range validates one:
+    (found, s*, t1*, t2*)."""
+    e1, e2, r, ok = _fold_newton(fam, rows, t1, t2, s, relative_s)
+    d = (r - s) * sigma
+    ahead = ok & (d >= -1e-12 * np.maximum(1.0, np.abs(s))) & (d <= 3.0 * est + 1e-12)
+    found = ahead.copy()
+    if np.any(ahead):
+        c = fam.at(rows[ahead], r[ahead])
+        _, _, h11, h12, h22, _, _ = _gh(c, e1[ahead], e2[ahead])
+        second = _eig2(h11, h12, h22)[1] > 0.0
+        pred1 = t1[ahead] + 2 * (r[ahead] - s[ahead]) * dt1[ahead]
+        pred2 = t2[ahead] + 2 * (r[ahead] - s[ahead]) * dt2[ahead]
+        gap = np.maximum(np.abs(_wrap(t1[ahead] - e1[ahead])), np.abs(_wrap(t2[ahead] - e2[ahead])))
+        near = (np.abs(_wrap(pred1 - e1[ahead])) <= 0.35 * gap + 1e-7) \
+            & (np.abs(_wrap(pred2 - e2[ahead])) <= 0.35 * gap + 1e-7)
+        found[ahead] = second & near
+    return found, r, e1, e2
+
+
+def fold_is_branch_point(fam, rows, t1, t2, s):
+    """Whether each located end is a branch point rather than a fold: the critical mode
+    orthogonal to dG/ds (operation_range's _kind_at)."""
+    c = fam.at(rows, s)
+    dA1, dA2, dC1, dC2, dK = c[5:10]
+    g1, g2, h11, h12, h22, _, (s1, c1, s2, c2, s12, c12) = _gh(c, t1, t2)
+    gs1 = dA1 * s1 - dK * s12 - dC1 * c1
+    gs2 = dA2 * s2 - dK * s12 - dC2 * c2
+    lo, hi = _eig2(h11, h12, h22)
+    lam = np.where(np.abs(lo) <= np.abs(hi), lo, hi)
+    v1, v2 = _mode(h11, h12, h22, lam)
+    norm = np.hypot(gs1, gs2)
+    return (norm == 0) | (np.abs(v1 * gs1 + v2 * gs2) <= 1e-7 * norm)
+
+
+def symmetric_rows(p0, dp, g):
+    """Rows with an exact symmetry along their whole path (their ends are branch points:
+    the scalar path solves them)."""
+    def raw(p):
+        return (p[:, _I['L1']], p[:, _I['L2']], p[:, _I['ka']], p[:, _I['kb']],
+                p[:, _I['f3x']], p[:, _I['f4x']],
+                p[:, _I['f3y']] - 0.5 * g * p[:, _I['m1']],
+                p[:, _I['f4y']] - 0.5 * g * p[:, _I['m2']])
+
+    out = np.zeros(len(p0), bool)
+    swap = np.ones(len(p0), bool)
+    swap_mirror = np.ones(len(p0), bool)
+    mirror = np.ones(len(p0), bool)
+    for p in (p0, p0 + dp):
+        L1, L2, ka, kb, f3x, f4x, F3, F4 = raw(p)
+        base = (L1 == L2) & (ka == kb) & (f3x == -f4x)
+        swap &= base & (F3 == F4)
+        swap_mirror &= base & (F3 == -F4)
+        mirror &= (F3 == 0.0) & (F4 == 0.0)
+    out |= swap | swap_mirror | mirror
+    return out
+
+
+def stable_equilibria(rows, g):
+    """(theta (m, 6, 2), stable (m, 6), eigenvalues) of every row (equilibria_batch)."""
+    values = {name: rows[:, i] for i, name in enumerate(PARAMETER_NAMES)}
+    batch = equilibria_batch(g=g, **values)
+    return batch.theta, batch.stable, batch.eigenvalues
+
+
+def upper_start(rows, g):
+    """The upper stable equilibrium of each row (start_state's default: the stable one
+    with the largest y3 + y4) and the number of stable equilibria: (t1, t2, count)."""
+    theta, stable, _ = stable_equilibria(rows, g)
+    L1, L2 = rows[:, _I['L1']], rows[:, _I['L2']]
+    height = L1[:, None] * np.sin(theta[..., 0]) + L2[:, None] * np.sin(theta[..., 1])
+    height = np.where(stable, height, -np.inf)
+    best = np.argmax(height, axis=1)
+    pick = np.arange(len(rows))
+    return theta[pick, best, 0], theta[pick, best, 1], stable.sum(axis=1)
+
+
+def settle_start(rows, g, guess):
+    """The stable equilibrium each row's mechanism settles into from ``guess``:
+    (t1, t2, decided).  Decided where the row has one stable equilibrium (every flow
+    ends there) or where a damped gradient flow from the guess comes to rest in one of
+    the two minima's convex neighbourhood; the others go to the scalar settle."""
+    theta, stable, _ = stable_equilibria(rows, g)
+    count = stable.sum(axis=1)
+    m = len(rows)
+    t1, t2 = np.full(m, np.nan), np.full(m, np.nan)
+    decided = np.zeros(m, bool)
+    one = count == 1
+    if np.any(one):
+        slot = np.argmax(stable[one], axis=1)
+        t1[one], t2[one] = theta[one, slot, 0], theta[one, slot, 1]
+        decided[one] = True
+    two = np.nonzero(count == 2)[0]
+    if two.size:
+        fam = _Family(rows[two], np.zeros_like(rows[two]), g)
+        f1, f2, rest = _flow(fam, np.full(two.size, float(guess[0])),
+                             np.full(two.size, float(guess[1])))
+        mins = theta[two][stable[two].nonzero()].reshape(two.size, 2, 2) if two.size else None
+        d = np.max(np.abs(_wrap(mins - np.stack([f1, f2], -1)[:, None, :])), axis=-1)
+        nearest = np.argmin(d, axis=1)
+        pick = np.arange(two.size)
+        clear = rest & (d[pick, nearest] < 1e-6) & (d[pick, 1 - nearest] > 1e-3)
+        k = two[clear]
+        t1[k], t2[k] = mins[pick[clear], nearest[clear], 0], mins[pick[clear], nearest[clear], 1]
+        decided[k] = True
+    return t1, t2, decided
+
+
+def _flow(fam, t1, t2, max_steps=4000):
+    """An overdamped flow from (t1, t2) per row: explicit steps of 0.5 / (a bound on
+    lambda_max) down the gradient, then Newton once the state is in a region where H
+    is positive definite and the Newton step is small.  (t1, t2, at_rest)."""
+    idx = np.arange(len(t1))
+    c = fam.at(idx, np.zeros(len(t1)))
+    h = 0.5 / _hessian_scale(c)
+    t1, t2 = t1.copy(), t2.copy()
+    rest = np.zeros(len(t1), bool)
+    active = idx.copy()
+    for it in range(max_steps):
+        if active.size == 0:
+            break
+        ca = _take(c, active)
+        a1, a2 = t1[active], t2[active]
+        g1, g2, h11, h12, h22, _, _ = _gh(ca, a1, a2)
+        t1[active] = a1 - h[active] * g1
+        t2[active] = a2 - h[active] * g2
+        if it % 16 == 15:
+            lo, _ = _eig2(h11, h12, h22)
+            det = h11 * h22 - h12 * h12
+            convex = (lo > 0) & (det > 0)
+            with np.errstate(divide='ignore', invalid='ignore'):
+                n1 = (h22 * g1 - h12 * g2) / det
+                n2 = (h11 * g2 - h12 * g1) / det
+            small = convex & (np.abs(n1) + np.abs(n2) < 1e-3)
+            if np.any(small):
+                k = active[small]
+                e1, e2, ok = newton(_take(c, k), t1[k], t2[k])
+                fine = ok & (np.abs(e1 - t1[k]) + np.abs(e2 - t2[k]) < 2e-3)
+                t1[k[fine]], t2[k[fine]] = e1[fine], e2[fine]
+                rest[k[fine]] = True
+                active = np.setdiff1d(active, k[fine], assume_unique=True)
+    return t1, t2, rest

@@ -1,0 +1,81 @@
+"""Statistics of a sampled design: quantiles, a proportion's confidence interval, and
+rank-correlation sensitivities.
+
+Sensitivity measure: Spearman's rank correlation of each figure with each toleranced
+parameter.  Why this and not Sobol' indices: it needs no sample design of its own (any
+sampler's points serve, Sobol' indices need Saltelli's N (d + 2) structured evaluations),
+it is invariant under any monotone change of scale (a figure in mm or in m, a stiffness
+or its logarithm), it works for a 0/1 outcome such as "jumps" as well as for a length,
+and for manufacturing tolerances, which are small, each figure is a nearly monotone
+function of each parameter, where the rank correlation is the natural measure of "how
+much of the scatter follows this parameter".  Its limits: it misses non-monotone
+effects (a parameter whose both signs of error narrow the range reads ~0), and its
+noise level is ~1/sqrt(n) (values below :func:`noise_level` are not significant).
+
+Jump probabilities carry an exact (Clopper-Pearson) binomial interval: it is valid for
+independent samples (``--sampler mc``) whatever the count, including 0 or n jumps; for
+Sobol' or Latin-hypercube points, which are not independent, it is the interval a plain
+Monte Carlo run of the same size would have (usually wider than the true one).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import stats
+
+#: The quantiles reported for every figure.
+QUANTILES = (0.01, 0.05, 0.5, 0.95, 0.99)
+#: Interval methods of scipy.stats.binomtest's proportion_ci, by our name.
+INTERVALS = {'clopper-pearson': 'exact', 'wilson': 'wilson'}
+
+
+def quantiles(values, levels=QUANTILES):
+    """{level: quantile} over the finite entries of ``values`` (linear interpolation,
+    numpy's default); every value NaN when none is finite."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return {q: math.nan for q in levels}
+    return dict(zip(levels, (float(x) for x in np.quantile(v, levels))))
+
+
+def proportion_interval(successes, trials, confidence=0.95, method='clopper-pearson'):
+    """(low, high) confidence interval of a probability from ``successes`` of
+    ``trials`` (scipy.stats.binomtest); (nan, nan) for no trials."""
+    if method not in INTERVALS:
+        raise ValueError(f'method must be one of {tuple(INTERVALS)}, got {method!r}')
+    if trials == 0:
+        return math.nan, math.nan
+    ci = stats.binomtest(int(successes), int(trials)).proportion_ci(
+        confidence_level=confidence, method=INTERVALS[method])
+    return float(ci.low), float(ci.high)
+
+
+def rank_correlations(inputs, figure):
+    """Spearman's rank correlation of ``figure`` (n,) with each column of ``inputs``
+    (n, d), over the rows where the figure is finite.  NaN where a column or the figure
+    is constant there (no ranking)."""
+    x = np.asarray(inputs, dtype=float)
+    y = np.asarray(figure, dtype=float)
+    keep = np.isfinite(y)
+    x, y = x[keep], y[keep]
+    out = np.full(x.shape[1], math.nan)
+    if y.size < 3:
+        return out
+    ry = stats.rankdata(y)
+    ry = ry - ry.mean()
+    ny = math.sqrt(float(ry @ ry))
+    for j in range(x.shape[1]):
+        rx = stats.rankdata(x[:, j])
+        rx = rx - rx.mean()
+        nx = math.sqrt(float(rx @ rx))
+        if nx > 0.0 and ny > 0.0:
+            out[j] = float(rx @ ry) / (nx * ny)
+    return out
+
+
+def noise_level(count):
+    """Two standard errors of a rank correlation between independent variables
+    (~2 / sqrt(n - 1)): smaller correlations are not told from noise."""
+    return 2.0 / math.sqrt(count - 1) if count > 1 else math.inf

@@ -1,0 +1,137 @@
+"""A tolerance study's report: the text table and the PNG figures (matplotlib, Agg).
+
+Input is :meth:`.tolerance.ToleranceResult.summary` (and the result itself for the
+histograms); nothing here computes a statistic.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: Figures not drawn as histograms (codes) -- counted in the text instead.
+_SKIP = ('status',)
+
+
+def _g(v, digits=6):
+    return 'nan' if v is None or (isinstance(v, float) and math.isnan(v)) else f'{v:.{digits}g}'
+
+
+def report_text(s):
+    """The summary as a few tables of text."""
+    lines = [f'tolerance study: question {s["question"]}, {s["samples"]} samples '
+             f'({s["sampler"]}, seed {s["seed"]}), {s["valid"]} answered'
+             + ('' if s['valid'] == s['samples'] else
+                ' (' + ', '.join(f'{k}: {v}' for k, v in s['status'].items()) + ')')]
+    e = s['engine']
+    lines.append(f'engine: {e["engine"]}, {e["chunks"]} chunks of {s["chunk"]}: '
+                 f'{e["seconds"]:.2f} s ({e["samples_per_second"]:.0f} samples/s; '
+                 f'start-up {e["startup_seconds"]:.2f} s; overhead {100 * e["overhead"]:.1f} %)')
+    lines.append('tolerances: ' + ', '.join(
+        f'{t["parameter"]} = {_g(t["nominal"])} {t["spec"]}' for t in s['tolerances']))
+    if s['figures']:
+        width = max(len(n) for n in s['figures'])
+        head = ['figure'.ljust(width), 'count'.rjust(6)] + [q.rjust(12) for q in
+                                                          next(iter(s['figures'].values()))
+                                                          ['quantiles']]
+        lines += ['', 'quantiles:', '  ' + ' '.join(head)]
+        for name, f in s['figures'].items():
+            lines.append('  ' + ' '.join([name.ljust(width), str(f['count']).rjust(6)]
+                                         + [_g(v, 8).rjust(12)
+                                            for v in f['quantiles'].values()]))
+    if s['kinds']:
+        lines += ['', 'counts:']
+        for name, counts in s['kinds'].items():
+            lines.append(f'  {name}: ' + ', '.join(f'{k} {v}' for k, v in counts.items()))
+    if s['probabilities']:
+        lines += ['', 'probabilities:']
+        for name, p in s['probabilities'].items():
+            lo, hi = p['interval']
+            lines.append(f'  {name}: {p["events"]}/{p["trials"]} = {_g(p["p"], 4)}, '
+                         f'{100 * p["confidence"]:g} % interval [{_g(lo, 4)}, {_g(hi, 4)}] '
+                         f'({p["method"]})')
+    sens = s['sensitivity']
+    if sens['figures']:
+        labels = [t['parameter'] for t in s['tolerances']]
+        width = max(len(n) for n in sens['figures'])
+        lines += ['', f'sensitivity ({sens["measure"]}; |r| < {sens["noise_level"]:.3f} is '
+                      f'noise):',
+                  '  ' + ' '.join(['figure'.ljust(width)] + [lab.rjust(9) for lab in labels])]
+        for name, r in sens['figures'].items():
+            lines.append('  ' + ' '.join([name.ljust(width)]
+                                         + [('-' if r[lab] is None else f'{r[lab]:+.3f}')
+                                            .rjust(max(9, len(lab))) for lab in labels]))
+    if s['worst']:
+        lines += ['', f'worst samples (by {s["worst"][0]["figure"]}):']
+        for w in s['worst']:
+            lines.append(f'  #{w["index"]}: {w["figure"]} = {_g(w["value"], 8)} '
+                         f'({w["status"]}); ' + ', '.join(f'{k}={_g(v, 10)}' for k, v in
+                                                        w['parameters'].items()))
+            if w.get('config'):
+                lines.append(f'    config {w["config_file"]}: write the "config" text of the '
+                             f'JSON report (or --replay-dir)')
+            lines += [f'    {cmd}' for cmd in w['replay']]
+    return '\n'.join(lines) + '\n'
+
+
+def _new_figure(size):
+    import matplotlib
+    matplotlib.use('Agg', force=False)
+    from matplotlib.figure import Figure
+    return Figure(figsize=size, dpi=100, layout='constrained')
+
+
+def plot_histograms(result, path):
+    """One histogram per figure that varies (valid samples), quantiles 5/50/95 % marked."""
+    ok = result.valid()
+    names = []
+    for name, values in result.figures.items():
+        v = values[ok]
+        v = v[np.isfinite(v)]
+        if name not in _SKIP and v.size and np.ptp(v) > 0:
+            names.append((name, v))
+    cols = min(3, max(1, len(names)))
+    rows = max(1, math.ceil(len(names) / cols))
+    fig = _new_figure((4.0 * cols, 2.8 * rows))
+    summary = result.summary()
+    for k, (name, v) in enumerate(names):
+        ax = fig.add_subplot(rows, cols, k + 1)
+        ax.hist(v, bins=min(60, max(10, int(math.sqrt(v.size)))), color='#4878a8')
+        q = summary['figures'].get(name, {}).get('quantiles')
+        if q:
+            for label in ('5%', '50%', '95%'):
+                ax.axvline(q[label], color='k', lw=0.8, ls='--' if label != '50%' else '-')
+        ax.set_title(name, fontsize=9)
+        ax.tick_params(labelsize=7)
+    if not names:
+        fig.add_subplot().text(0.5, 0.5, 'no figure varies', ha='center')
+    fig.suptitle(f'tolerance study ({summary["question"]}): {summary["valid"]} samples; '
+                 f'dashed 5 / 95 %, solid median', fontsize=10)
+    fig.savefig(path, format='png')
+    return path
+
+
+def plot_sensitivity(summary, path):
+    """Grouped horizontal bars: rank correlation of each figure with each parameter."""
+    sens = summary['sensitivity']
+    figures = list(sens['figures'])
+    labels = [t['parameter'] for t in summary['tolerances']]
+    fig = _new_figure((7.0, 1.0 + 0.35 * max(1, len(figures)) * max(1, len(labels)) ** 0.7))
+    ax = fig.add_subplot()
+    height = 0.8 / max(1, len(labels))
+    y = np.arange(len(figures))
+    for j, label in enumerate(labels):
+        r = [sens['figures'][f][label] for f in figures]
+        ax.barh(y + j * height, [0.0 if v is None else v for v in r], height, label=label)
+    noise = sens['noise_level']
+    for x in (-noise, noise):
+        ax.axvline(x, color='grey', lw=0.8, ls=':')
+    ax.set_yticks(y + 0.4 - height / 2, figures, fontsize=8)
+    ax.set_xlim(-1, 1)
+    ax.set_xlabel("Spearman rank correlation (dotted: noise level)")
+    ax.invert_yaxis()
+    ax.legend(fontsize=7, loc='best')
+    ax.set_title(f'sensitivity ({summary["question"]}, {summary["valid"]} samples)',
+                 fontsize=10)
+    fig.savefig(path, format='png')
+    return path

@@ -14,6 +14,8 @@ Subcommands::
     tensegrity range   --rho R [--theta1 T1 --theta2 T2] [params] [--json]
     tensegrity limit   --L2 X [--pushing] [--json]
     tensegrity snap    --rho R0 --to-rho R1 --rate V --damping C --m1 M --m2 M [...]  (dynamics)
+    tensegrity tolerance range|path|head-load [design] --tol NAME=SPREAD ... --samples N
+                       [--processes P | --scheduler ADDR] [--json F] [--csv F] [--plot PREFIX]
 
 Units are SI (m, N, N/m, kg); angles are radians on input and in JSON/CSV, the
 human-readable tables show degrees.  The paper's F3, F4 are the vertical force
@@ -38,7 +40,7 @@ import sys
 
 import numpy as np
 
-from . import snap_command
+from . import snap_command, tolerance_command
 from .core import InvalidParameterError, ModuleParams, equilibria, track_module
 from .core.start_state import start_state, upright_guess
 from .problem import (APPLY_ORDER, DEFAULT_FIELDS, PARAMETERS, describe, describe_modules,
@@ -273,6 +275,8 @@ def build_parser():
 
     snap_command.add_snap_parser(sub, _add_parameter_options, finite_float).set_defaults(
         func=cmd_snap)
+    tolerance_command.add_tolerance_parser(sub, _add_parameter_options, finite_float,
+                                           positive_int).set_defaults(func=cmd_tolerance)
     return parser
 
 
@@ -1025,6 +1029,16 @@ def cmd_snap(args, out):
     start = make_params(_values(args))
     return snap_command.run_snap(args, out, start,
                                  start_equilibrium(start, _start_guess(args)).theta)
+
+
+def cmd_tolerance(args, out):
+    """``tolerance``: the design as the other commands parse it; the rest in
+    tolerance_command."""
+    from .tolerance import ToleranceError
+    try:
+        return tolerance_command.run_tolerance(args, out, _values(args), finite_float)
+    except ToleranceError as exc:
+        raise UsageError(str(exc)) from None
 
 
 # ---------------------------------------------------------------------------

@@ -379,7 +379,9 @@ class ToleranceResult:
             probabilities[name] = {'events': k, 'trials': n,
                                    'p': k / n if n else math.nan, 'interval': [lo, hi],
                                    'confidence': self.confidence, 'method': self.interval}
-        sensitivity = {}
+        sensitivity, size_sensitivity = {}, {}
+        nominal = np.array([t['nominal'] for t in map(self.tolerance_record, self.tolerances)])
+        error_size = np.abs(self.inputs - nominal)
         for name, values in self.figures.items():
             if name in CODE_FIGURES and name not in ('num_stable', 'jumps'):
                 continue
@@ -387,8 +389,8 @@ class ToleranceResult:
             r = rank_correlations(self.inputs, v)
             if np.all(np.isnan(r)):
                 continue
-            sensitivity[name] = dict(zip(self.labels, (None if math.isnan(x) else float(x)
-                                                       for x in r)))
+            sensitivity[name] = _by_label(self.labels, r)
+            size_sensitivity[name] = _by_label(self.labels, rank_correlations(error_size, v))
         return {
             'question': self.question.name,
             'samples': self.samples, 'valid': n_ok, 'status': counts,
@@ -406,7 +408,8 @@ class ToleranceResult:
                        'overhead': self.run.overhead},
             'figures': figures, 'kinds': codes, 'probabilities': probabilities,
             'sensitivity': {'measure': 'spearman rank correlation',
-                            'noise_level': noise_level(n_ok), 'figures': sensitivity},
+                            'noise_level': noise_level(n_ok), 'figures': sensitivity,
+                            'error_size': size_sensitivity},
             'worst': self.worst(),
         }
 
@@ -482,6 +485,10 @@ class ToleranceResult:
         from .tolerance_report import plot_histograms, plot_sensitivity
         return [plot_histograms(self, f'{prefix}_histograms.png'),
                 plot_sensitivity(self.summary(), f'{prefix}_sensitivity.png')]
+
+
+def _by_label(labels, r):
+    return dict(zip(labels, (None if math.isnan(x) else float(x) for x in r)))
 
 
 def _float(v):

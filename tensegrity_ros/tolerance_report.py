@@ -28,7 +28,7 @@ def report_text(s):
                  f'{e["seconds"]:.2f} s ({e["samples_per_second"]:.0f} samples/s; '
                  f'start-up {e["startup_seconds"]:.2f} s; overhead {100 * e["overhead"]:.1f} %)')
     lines.append('tolerances: ' + ', '.join(
-        f'{t["parameter"]} = {_g(t["nominal"])} {t["spec"]}' for t in s['tolerances']))
+        f'{t["parameter"]} = {_g(t["nominal"])} +- {t["spec"]}' for t in s['tolerances']))
     if s['figures']:
         width = max(len(n) for n in s['figures'])
         head = ['figure'.ljust(width), 'count'.rjust(6)] + [q.rjust(12) for q in
@@ -51,13 +51,18 @@ def report_text(s):
                          f'{100 * p["confidence"]:g} % interval [{_g(lo, 4)}, {_g(hi, 4)}] '
                          f'({p["method"]})')
     sens = s['sensitivity']
-    if sens['figures']:
-        labels = [t['parameter'] for t in s['tolerances']]
-        width = max(len(n) for n in sens['figures'])
-        lines += ['', f'sensitivity ({sens["measure"]}; |r| < {sens["noise_level"]:.3f} is '
-                      f'noise):',
+    labels = [t['parameter'] for t in s['tolerances']]
+    for key, what in (('figures', 'with each parameter'),
+                      ('error_size', 'with the size of its error |x - nominal| (even '
+                                     'effects)')):
+        table = sens.get(key) or {}
+        if not table:
+            continue
+        width = max(len(n) for n in table)
+        lines += ['', f'sensitivity: {sens["measure"]} {what}; |r| < '
+                      f'{sens["noise_level"]:.3f} is noise:',
                   '  ' + ' '.join(['figure'.ljust(width)] + [lab.rjust(9) for lab in labels])]
-        for name, r in sens['figures'].items():
+        for name, r in table.items():
             lines.append('  ' + ' '.join([name.ljust(width)]
                                          + [('-' if r[lab] is None else f'{r[lab]:+.3f}')
                                             .rjust(max(9, len(lab))) for lab in labels]))
@@ -112,26 +117,33 @@ def plot_histograms(result, path):
 
 
 def plot_sensitivity(summary, path):
-    """Grouped horizontal bars: rank correlation of each figure with each parameter."""
+    """Grouped horizontal bars: rank correlation of each figure with each parameter (left)
+    and with the size of each parameter's error (right: effects even in the error)."""
     sens = summary['sensitivity']
     figures = list(sens['figures'])
     labels = [t['parameter'] for t in summary['tolerances']]
-    fig = _new_figure((7.0, 1.0 + 0.35 * max(1, len(figures)) * max(1, len(labels)) ** 0.7))
-    ax = fig.add_subplot()
+    fig = _new_figure((11.0, 1.2 + 0.3 * max(1, len(figures)) * max(1, len(labels)) ** 0.7))
     height = 0.8 / max(1, len(labels))
     y = np.arange(len(figures))
-    for j, label in enumerate(labels):
-        r = [sens['figures'][f][label] for f in figures]
-        ax.barh(y + j * height, [0.0 if v is None else v for v in r], height, label=label)
     noise = sens['noise_level']
-    for x in (-noise, noise):
-        ax.axvline(x, color='grey', lw=0.8, ls=':')
-    ax.set_yticks(y + 0.4 - height / 2, figures, fontsize=8)
-    ax.set_xlim(-1, 1)
-    ax.set_xlabel("Spearman rank correlation (dotted: noise level)")
-    ax.invert_yaxis()
-    ax.legend(fontsize=7, loc='best')
-    ax.set_title(f'sensitivity ({summary["question"]}, {summary["valid"]} samples)',
-                 fontsize=10)
+    for k, (key, title) in enumerate((('figures', 'with the parameter'),
+                                      ('error_size', 'with |parameter - nominal|'))):
+        ax = fig.add_subplot(1, 2, k + 1)
+        table = sens.get(key) or {}
+        for j, label in enumerate(labels):
+            r = [(table.get(f) or {}).get(label) for f in figures]
+            ax.barh(y + j * height, [0.0 if v is None else v for v in r], height,
+                    label=label if k == 0 else None)
+        for x in (-noise, noise):
+            ax.axvline(x, color='grey', lw=0.8, ls=':')
+        ax.set_yticks(y + 0.4 - height / 2, figures if k == 0 else [''] * len(figures),
+                      fontsize=8)
+        ax.set_xlim(-1, 1)
+        ax.invert_yaxis()
+        ax.set_xlabel(f'Spearman rank correlation {title}', fontsize=8)
+        if k == 0 and labels:
+            ax.legend(fontsize=7, loc='best')
+    fig.suptitle(f'sensitivity ({summary["question"]}, {summary["valid"]} samples; dotted: '
+                 f'noise level)', fontsize=10)
     fig.savefig(path, format='png')
     return path

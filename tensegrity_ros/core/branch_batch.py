@@ -406,9 +406,12 @@ def upper_start(rows, g):
 
 def settle_start(rows, g, guess):
     """The stable equilibrium each row's mechanism settles into from ``guess``:
-    (t1, t2, decided).  Decided where the row has one stable equilibrium (every flow
+    (t1, t2, decided, number of stable equilibria).  Decided where the row has one stable equilibrium (every flow
     ends there) or where a damped gradient flow from the guess comes to rest in one of
-    the two minima's convex neighbourhood; the others go to the scalar settle."""
+    the two minima's convex neighbourhood, the same with half the step (the flow is
+    integrated by Runge-Kutta; a guess near the boundary of two basins, where the
+    discretisation could decide, lands differently and is not decided); the others go
+    to the scalar settle."""
     theta, stable, _ = stable_equilibria(rows, g)
     count = stable.sum(axis=1)
     m = len(rows)
@@ -422,26 +425,31 @@ def settle_start(rows, g, guess):
     two = np.nonzero(count == 2)[0]
     if two.size:
         fam = _Family(rows[two], np.zeros_like(rows[two]), g)
-        f1, f2, rest = _flow(fam, np.full(two.size, float(guess[0])),
-                             np.full(two.size, float(guess[1])))
-        mins = theta[two][stable[two].nonzero()].reshape(two.size, 2, 2) if two.size else None
-        d = np.max(np.abs(_wrap(mins - np.stack([f1, f2], -1)[:, None, :])), axis=-1)
-        nearest = np.argmin(d, axis=1)
+        mins = theta[two][stable[two].nonzero()].reshape(two.size, 2, 2)
         pick = np.arange(two.size)
-        clear = rest & (d[pick, nearest] < 1e-6) & (d[pick, 1 - nearest] > 1e-3)
+        clear = np.ones(two.size, bool)
+        landed = []
+        for step in (1.0, 0.5):         # a landing that holds with half the step
+            f1, f2, rest = _flow(fam, np.full(two.size, float(guess[0])),
+                                 np.full(two.size, float(guess[1])), step)
+            d = np.max(np.abs(_wrap(mins - np.stack([f1, f2], -1)[:, None, :])), axis=-1)
+            nearest = np.argmin(d, axis=1)
+            clear &= rest & (d[pick, nearest] < 1e-6) & (d[pick, 1 - nearest] > 1e-3)
+            landed.append(nearest)
+        clear &= landed[0] == landed[1]
         k = two[clear]
         t1[k], t2[k] = mins[pick[clear], nearest[clear], 0], mins[pick[clear], nearest[clear], 1]
         decided[k] = True
-    return t1, t2, decided
+    return t1, t2, decided, count
 
 
-def _flow(fam, t1, t2, max_steps=4000):
-    """An overdamped flow from (t1, t2) per row: explicit steps of 0.5 / (a bound on
-    lambda_max) down the gradient, then Newton once the state is in a region where H
-    is positive definite and the Newton step is small.  (t1, t2, at_rest)."""
+def _flow(fam, t1, t2, step=1.0, max_steps=3000):
+    """An overdamped flow d(theta)/dt = -G from (t1, t2) per row: classical Runge-Kutta
+    steps of ``step`` / (a bound on lambda_max), then Newton once the state is where H is
+    positive definite and the Newton step is small.  (t1, t2, at_rest)."""
     idx = np.arange(len(t1))
     c = fam.at(idx, np.zeros(len(t1)))
-    h = 0.5 / _hessian_scale(c)
+    h = step / _hessian_scale(c)
     t1, t2 = t1.copy(), t2.copy()
     rest = np.zeros(len(t1), bool)
     active = idx.copy()
@@ -449,11 +457,15 @@ def _flow(fam, t1, t2, max_steps=4000):
         if active.size == 0:
             break
         ca = _take(c, active)
+        ha = h[active]
         a1, a2 = t1[active], t2[active]
         g1, g2, h11, h12, h22, _, _ = _gh(ca, a1, a2)
-        t1[active] = a1 - h[active] * g1
-        t2[active] = a2 - h[active] * g2
-        if it % 16 == 15:
+        k2 = _gh(ca, a1 - 0.5 * ha * g1, a2 - 0.5 * ha * g2)
+        k3 = _gh(ca, a1 - 0.5 * ha * k2[0], a2 - 0.5 * ha * k2[1])
+        k4 = _gh(ca, a1 - ha * k3[0], a2 - ha * k3[1])
+        t1[active] = a1 - ha / 6 * (g1 + 2 * k2[0] + 2 * k3[0] + k4[0])
+        t2[active] = a2 - ha / 6 * (g2 + 2 * k2[1] + 2 * k3[1] + k4[1])
+        if it % 8 == 7:
             lo, _ = _eig2(h11, h12, h22)
             det = h11 * h22 - h12 * h12
             convex = (lo > 0) & (det > 0)

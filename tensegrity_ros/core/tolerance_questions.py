@@ -81,22 +81,29 @@ def _start(rows, g, guess):
     if guess is None:
         t1, t2, count = bb.upper_start(rows, g)
         return t1, t2, count > 0, count
-    t1, t2, decided = bb.settle_start(rows, g, guess)
-    count = bb.stable_equilibria(rows, g)[1].sum(axis=1)
-    return t1, t2, decided, count
+    return bb.settle_start(rows, g, guess)
 
 
-def _landings(rows, g, t1, t2):
-    """Where a module jumping off the fold (t1, t2) of parameters ``rows`` lands: the
-    one stable equilibrium there other than the fold itself (a module has at most two
-    stable equilibria).  (t1, t2, unique): not unique rows go to the scalar tracker."""
-    theta, stable, _ = bb.stable_equilibria(rows, g)
+def _landings(fam, rows, s, t1, t2, g):
+    """Where a module jumping off the fold (t1, t2) at ``s`` of rows ``rows`` of ``fam``
+    lands: the one stable equilibrium there other than the fold itself (a module has at
+    most two stable equilibria).  It is found past the fold (s + 0.01, where the fold's
+    pair of equilibria has gone and the batch solver sees a generic point), then polished
+    at s by Newton and checked stable and away from the fold.  (t1, t2, unique): the
+    rows where that fails (no single candidate, the fold too close to the leg's end, a
+    landing minimum that exists only past the jump) go to the scalar tracker."""
+    probe = np.minimum(s + 0.01, 1.0)
+    params = fam.p0[rows] + probe[:, None] * fam.dp[rows]
+    theta, stable, _ = bb.stable_equilibria(params, g)
     far = np.max(np.abs(_wrap(theta - np.stack([t1, t2], -1)[:, None, :])), axis=-1) > 1e-3
     other = stable & far
-    unique = other.sum(axis=1) == 1
+    unique = (other.sum(axis=1) == 1) & (probe - s >= 1e-3)
     slot = np.argmax(other, axis=1)
     pick = np.arange(len(rows))
-    return theta[pick, slot, 0], theta[pick, slot, 1], unique
+    l1, l2, ok = bb.newton(fam.at(rows, s), theta[pick, slot, 0], theta[pick, slot, 1])
+    away = np.maximum(np.abs(_wrap(l1 - t1)), np.abs(_wrap(l2 - t2))) > 1e-3
+    stable_here = _stable_at(fam, rows, s, l1, l2)
+    return l1, l2, unique & ok & away & stable_here
 
 
 def _stable_at(fam, idx, s, t1, t2):
@@ -337,8 +344,7 @@ class PlannedPath:
                 fold = np.nonzero((kind == bb.FOLD) & ~delicate)[0]
                 if fold.size:
                     r = live[fold]
-                    l1, l2, unique = _landings(p0[r] + end_s[fold, None] * dp[r], g,
-                                               e1[fold], e2[fold])
+                    l1, l2, unique = _landings(fam, r, end_s[fold], e1[fold], e2[fold], g)
                     delicate[fold[~unique]] = True
                     fold, r, l1, l2 = fold[unique], r[unique], l1[unique], l2[unique]
                     new = first[r] < 0

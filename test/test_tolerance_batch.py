@@ -1,0 +1,119 @@
+"""The vectorised branch follower (core/branch_batch.py) against the scalar reference,
+sample by sample: every figure of the operating range equals operation_range's
+(``tensegrity range``), every figure of a planned path track_module's (``tensegrity
+track``), over designs with folds, search limits, start guesses, schedules of several
+legs, moving loads, rod weights, horizontal loads, nearly and exactly symmetric samples
+(which the batch hands to the scalar path).  And a sample's answer does not depend on
+the other samples of its chunk."""
+import numpy as np
+import pytest
+
+from tensegrity_ros.core.tolerance_sampling import sample_waypoints, unit_samples
+from tensegrity_ros.tolerance import module_design, parse_tolerances, question_for
+
+RANGE_CASES = [
+    # lower branch of fig. 8a: folds at both ends (C1 imperfect, C2)
+    (dict(rho=0.5, F=5.0), (-1.0, -1.0), ['k=5%', 'L2=0.001', 'F3=normal:0.2']),
+    # its upper branch: stable over the whole search interval (limits)
+    (dict(rho=0.5, F=5.0), None, ['k=5%', 'L2=0.01']),
+    # fig. 7 (pushing, L2 = 3/2), both branches
+    (dict(rho=0.7, F=-10.0, L2=1.5), None, ['k=5%', 'L2=0.01', 'F3=0.5']),
+    (dict(rho=0.7, F=-10.0, L2=1.5), (-0.5, -0.5), ['ka=2%', 'L1=normal:0.01:3']),
+    # mixed loads, horizontal loads and rod weights
+    (dict(rho=1.0, F3=3.0, F4=-2.0, L2=0.8, F3x=0.5, m1=0.2, m2=0.1), None,
+     ['k=10%', 'L1=0.05', 'F=1', 'm1=20%']),
+    # nearly symmetric: ends at imperfect branch points (sharp turns)
+    (dict(rho=0.5, F=5.0), (-1.0, -1.0), ['L2=normal:1e-7']),
+    # exactly symmetric samples (only the shared spring factor... each spring varies,
+    # but L1 = L2 and F3 = F4 stay equal only for kc): swap symmetry broken by ka, kb
+    (dict(rho=0.75, F=-10.0), None, ['kc=5%']),
+    # unloaded: mirror symmetric, branch points at |L1 - L2| / 2 and (L1 + L2) / 2
+    (dict(rho=0.5, L2=1.3), None, ['L2=0.02']),
+]
+
+PATH_CASES = [
+    (dict(rho=0.5, F=5.0), [dict(rho=0.1)], (-1.0, -1.0), ['L2=normal:0.001']),
+    (dict(rho=0.5, F=5.0), [dict(rho=0.1), dict(rho=0.5)], (-1.0, -1.0),
+     ['L2=normal:0.02', 'k=5%']),
+    (dict(rho=0.5, F=5.0), [dict(rho=1.2), dict(rho=0.5), dict(rho=0.12)], (-1.0, -1.0),
+     ['L2=0.02', 'F4=0.3']),
+    (dict(rho=0.6), [dict(F=-40.0)], None, ['L2=0.01', 'k=5%', 'F3=0.1']),
+    (dict(rho=0.7, F3=2.0, F4=-1.0), [dict(rho=0.2, F3=8.0), dict(rho=1.4, F4=-6.0)], None,
+     ['L1=0.02', 'k=5%', 'F3=0.5']),
+    (dict(rho=0.5, F=5.0, m1=0.1, m2=0.1, F4x=0.3), [dict(rho=0.12, F4x=-0.3)], (-1.0, -1.0),
+     ['m2=0.05', 'L2=0.01']),
+    # ends near C1: some samples jump, some do not
+    (dict(rho=0.5, F=5.0), [dict(rho=0.157)], (-1.0, -1.0), ['L2=normal:0.001']),
+    # exactly symmetric path (L1 = L2, F3 = F4 throughout): the scalar path
+    (dict(rho=0.5, F=5.0), [dict(rho=0.1)], (-1.0, -1.0), ['kc=1%']),
+]
+
+
+def sampled(kind, values, legs, guess, tols, n, seed=0):
+    design = module_design(values, legs=legs, guess=guess)
+    t = parse_tolerances(tols, design)
+    w = sample_waypoints(design.stops, t, unit_samples(n, len(t), 'sobol', seed))
+    return question_for(kind, design), question_for(kind, design, exact=True), w
+
+
+def assert_same(a, b, atol):
+    for name in a:
+        x, y = a[name], b[name]
+        np.testing.assert_array_equal(np.isnan(x), np.isnan(y), err_msg=name)
+        np.testing.assert_allclose(x, y, rtol=0, atol=atol, equal_nan=True, err_msg=name)
+
+
+@pytest.mark.parametrize('values, guess, tols', RANGE_CASES)
+def test_operating_range_equals_operation_range_sample_by_sample(values, guess, tols):
+    batch, exact, w = sampled('range', values, (), guess, tols, 64)
+    fast = batch.evaluate(w)
+    reference = exact.evaluate(w)
+    assert np.all(reference['status'] == 0)
+    assert_same(fast, reference, 1e-10)
+
+
+@pytest.mark.parametrize('values, legs, guess, tols', PATH_CASES)
+def test_planned_path_equals_track_module_sample_by_sample(values, legs, guess, tols):
+    batch, exact, w = sampled('path', values, legs, guess, tols, 24)
+    fast = batch.evaluate(w)
+    reference = exact.evaluate(w)
+    assert np.all(reference['status'] == 0)
+    assert_same(fast, reference, 1e-8)       # the tracker locates events to 1e-9 in s
+
+
+def test_some_samples_jump_near_c1_and_some_do_not():
+    batch, _, w = sampled('path', dict(rho=0.5, F=5.0), [dict(rho=0.157)], (-1.0, -1.0),
+                          ['L2=normal:0.001'], 256)
+    jumped = batch.evaluate(w)['jumped']
+    assert 0.2 < jumped.mean() < 0.8
+
+
+def test_random_designs_agree():
+    rng = np.random.default_rng(11)
+    for trial in range(4):
+        values = dict(rho=float(rng.uniform(0.2, 1.5)), L2=float(rng.uniform(0.6, 1.4)),
+                      F3=float(rng.uniform(-12, 12)), F4=float(rng.uniform(-12, 12)))
+        guess = tuple(rng.uniform(-2, 2, 2)) if trial % 2 else None
+        batch, exact, w = sampled('range', values, (), guess, ['k=5%', 'L2=0.01', 'F3=0.3'],
+                                  48, seed=trial)
+        assert_same(batch.evaluate(w), exact.evaluate(w), 1e-10)
+        legs = [dict(rho=float(rng.uniform(0.1, 1.8)), F4=float(rng.uniform(-12, 12)))]
+        batch, exact, w = sampled('path', values, legs, guess, ['k=5%', 'L1=0.01'], 24,
+                                  seed=trial)
+        assert_same(batch.evaluate(w), exact.evaluate(w), 1e-8)
+
+
+@pytest.mark.parametrize('kind, values, legs, guess', [
+    ('range', dict(rho=0.5, F=5.0), (), (-1.0, -1.0)),
+    ('path', dict(rho=0.5, F=5.0), [dict(rho=0.157), dict(rho=1.2)], (-1.0, -1.0)),
+])
+def test_a_samples_answer_does_not_depend_on_its_chunk(kind, values, legs, guess):
+    batch, _, w = sampled(kind, values, legs, guess, ['k=5%', 'L2=normal:0.001'], 200)
+    whole = batch.evaluate(w)
+    order = np.random.default_rng(0).permutation(len(w))
+    pieces = [batch.evaluate(w[order[i:i + 37]]) for i in range(0, len(w), 37)]
+    for name in whole:
+        shuffled = np.concatenate([p[name] for p in pieces])
+        back = np.empty_like(shuffled)
+        back[order] = shuffled
+        np.testing.assert_array_equal(back, whole[name], err_msg=name)

@@ -342,7 +342,10 @@ def _theta_close(a, b, tol):
 def _localise(P, sym, t1, t2, rho, sigma, est, dtheta, v):
     """Try to locate the end of the branch ahead of (t1, t2, rho) (estimated distance est).
 
-    Returns (rho*, theta*, kind, symmetry) or None when no validated end is found."""
+    Returns (rho*, theta*, kind, symmetry) or None when no validated end is found
+    (also where a nearer end ahead is still too far for the square-root law to judge:
+    the branch steps on towards it first)."""
+    too_far = math.inf          # nearest end ahead the square-root law could not judge yet
     flat = None
     for f in _FLATS:
         if _theta_close((t1, t2), f, 1e-9):
@@ -361,6 +364,8 @@ def _localise(P, sym, t1, t2, rho, sigma, est, dtheta, v):
                     if _theta_close(pred, f, 0.3 * max(abs(_wrap(t1 - f[0])),
                                                        abs(_wrap(t2 - f[1]))) + 1e-6):
                         candidates.append((r, f, BRANCH_POINT, MIRROR))
+                    elif 0.0 <= d * sigma <= 3.0 * est:
+                        too_far = min(too_far, d * sigma)
     if not candidates:
         if SWAP in sym and abs(_wrap(t1 - t2)) < 1e-9 and abs(v[0] + v[1]) < 0.2:
             t, r, ok = _swap_newton(P, 0.5 * (t1 + t2), rho, False)
@@ -390,6 +395,7 @@ def _localise(P, sym, t1, t2, rho, sigma, est, dtheta, v):
             pred = (t1 + 2 * (r - rho) * dtheta[0], t2 + 2 * (r - rho) * dtheta[1])
             gap = max(abs(_wrap(t1 - th[0])), abs(_wrap(t2 - th[1])))
             if not _theta_close(pred, th, 0.35 * gap + 1e-7):
+                too_far = min(too_far, d)
                 continue
         else:
             pred = (t1 + (r - rho) * dtheta[0], t2 + (r - rho) * dtheta[1])
@@ -397,7 +403,10 @@ def _localise(P, sym, t1, t2, rho, sigma, est, dtheta, v):
                 continue
         if best is None or d < best[0]:
             best = (d, r, th, kind, symmetry)
-    if best is None:
+    if best is None or too_far < best[0]:
+        # a nearer end ahead is still too far for its square-root law: step on (else the
+        # unloaded module with L2 = 1.2539 took the flat's other degeneracy, at rho = 0,
+        # for the end of its branch, which merges at (L2 - L1) / 2)
         return None
     _, r, th, kind, symmetry = best
     if kind == FOLD:

@@ -107,8 +107,10 @@ def _run_dask(function, chunks, processes, scheduler, progress, retries, sizes, 
     try:
         if scheduler is None:
             n = processes or cores()
+            # loopback only; its HTTP server on a free port (8787 may be another's)
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
+                                   host='127.0.0.1', dashboard_address='127.0.0.1:0',
+                                   silence_logs=logging.ERROR)
             client = Client(cluster, timeout=CONNECT_TIMEOUT)
             engine = f'LocalCluster ({n} worker processes)'
         else:

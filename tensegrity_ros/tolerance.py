@@ -43,11 +43,13 @@ QUESTIONS = ('range', 'path', 'head-load')
 #: Names that load the head of a neck (as the CLI's load options).
 HEAD_NAMES = ('F', 'F3', 'F4', 'F3x', 'F4x')
 #: Samples per chunk by question (one module vectorised, scalar tracking, a neck):
-#: each chunk takes ~0.1-1 s, against dask's ~1-5 ms per task (measured in
-#: benchmarks/bench_tolerance.py: overhead below 10 %).
+#: each chunk takes ~0.1-1 s against dask's ~2 ms per task (benchmarks/
+#: bench_tolerance.py), and the vectorised questions amortise their per-step numpy
+#: overhead over the rows (a range sample costs 73 us of CPU in chunks of 512, 56 in
+#: 2048, 42 in 8192).  Larger studies get larger chunks, up to these.
 CHUNK_SIZES = {'range': 8192, 'path': 4096, 'head-load': 256, 'neck': 16}
-#: Fewest samples per chunk (so that a small study still makes several chunks).
-MIN_CHUNK = {'range': 512, 'path': 256, 'head-load': 16, 'neck': 2}
+#: Fewest samples per chunk (unless the study is smaller).
+MIN_CHUNK = {'range': 2048, 'path': 1024, 'head-load': 16, 'neck': 2}
 #: Figures that code a kind (counted, not averaged).
 CODE_FIGURES = ('lower_kind', 'upper_kind', 'jump_kind', 'collapse_kind', 'status',
                 'num_stable', 'jump_leg', 'jumps')

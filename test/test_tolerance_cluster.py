@@ -93,14 +93,15 @@ def test_same_answer_in_process_on_a_local_cluster_and_on_a_remote_scheduler(rem
                        guess=(-1.0, -1.0)), 'path', ['L2=normal:0.001', 'kc=2%'], 1024, False),
     ]
     for design, question, tols, n, on_local_cluster in studies:
-        here = tolerance_study(design, question, tols, samples=n, seed=5, processes=1)
-        remote = tolerance_study(design, question, tols, samples=n, seed=5,
+        here = tolerance_study(design, question, tols, samples=n, seed=5, processes=1, chunk=512)
+        remote = tolerance_study(design, question, tols, samples=n, seed=5, chunk=512,
                                  scheduler=remote_scheduler)
         assert here.run.chunks == remote.run.chunks > 2 and remote.run.workers == 2
         same(here.figures, remote.figures)
         assert json.dumps(here.summary()['figures']) == json.dumps(remote.summary()['figures'])
         if on_local_cluster:            # (one LocalCluster start-up: ~3-5 s here)
-            local = tolerance_study(design, question, tols, samples=n, seed=5, processes=2)
+            local = tolerance_study(design, question, tols, samples=n, seed=5, processes=2,
+                                    chunk=512)
             assert local.run.chunks == here.run.chunks and local.run.workers == 2
             same(here.figures, local.figures)
 

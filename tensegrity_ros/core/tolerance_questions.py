@@ -87,17 +87,19 @@ def _start(rows, g, guess):
 def _landings(fam, rows, s, t1, t2, g):
     """Where a module jumping off the fold (t1, t2) at ``s`` of rows ``rows`` of ``fam``
     lands: the one stable equilibrium there other than the fold itself (a module has at
-    most two stable equilibria).  It is found past the fold (s + 0.01, where the fold's
-    pair of equilibria has gone and the batch solver sees a generic point), then polished
-    at s by Newton and checked stable and away from the fold.  (t1, t2, unique): the
-    rows where that fails (no single candidate, the fold too close to the leg's end, a
-    landing minimum that exists only past the jump) go to the scalar tracker."""
-    probe = np.minimum(s + 0.01, 1.0)
-    params = fam.p0[rows] + probe[:, None] * fam.dp[rows]
+    most two stable equilibria).  It is found past the fold (s + 0.01 on the straight
+    path, beyond the leg's end if need be: the fold's pair of equilibria has gone there
+    and the batch solver sees a generic point), then polished at s by Newton and checked
+    stable and away from the fold.  (t1, t2, unique): the rows where that fails (no
+    single candidate, parameters past the fold outside the domain, a landing minimum that
+    exists only past the jump) go to the scalar tracker."""
+    params = fam.p0[rows] + (s + 0.01)[:, None] * fam.dp[rows]
+    valid = _valid_rows(params)
+    params[~valid] = fam.p0[rows][~valid]               # (answered by the scalar path)
     theta, stable, _ = bb.stable_equilibria(params, g)
     far = np.max(np.abs(_wrap(theta - np.stack([t1, t2], -1)[:, None, :])), axis=-1) > 1e-3
     other = stable & far
-    unique = (other.sum(axis=1) == 1) & (probe - s >= 1e-3)
+    unique = (other.sum(axis=1) == 1) & valid
     slot = np.argmax(other, axis=1)
     pick = np.arange(len(rows))
     l1, l2, ok = bb.newton(fam.at(rows, s), theta[pick, slot, 0], theta[pick, slot, 1])

@@ -52,7 +52,7 @@ CHUNK_SIZES = {'range': 8192, 'path': 4096, 'head-load': 256, 'neck': 16}
 MIN_CHUNK = {'range': 2048, 'path': 1024, 'head-load': 16, 'neck': 2}
 #: Figures that code a kind (counted, not averaged).
 CODE_FIGURES = ('lower_kind', 'upper_kind', 'jump_kind', 'collapse_kind', 'status',
-                'num_stable', 'jump_leg', 'jumps')
+                'num_stable', 'jump_leg', 'jumps', 'scalar')
 
 
 class ToleranceError(ValueError):

@@ -57,7 +57,10 @@ def sampled(kind, values, legs, guess, tols, n, seed=0):
 
 
 def assert_same(a, b, atol):
+    assert np.all(b['scalar'] == 1.0)
     for name in a:
+        if name == 'scalar':            # who answered: the point of the comparison
+            continue
         x, y = a[name], b[name]
         np.testing.assert_array_equal(np.isnan(x), np.isnan(y), err_msg=name)
         np.testing.assert_allclose(x, y, rtol=0, atol=atol, equal_nan=True, err_msg=name)
@@ -79,6 +82,18 @@ def test_planned_path_equals_track_module_sample_by_sample(values, legs, guess, 
     reference = exact.evaluate(w)
     assert np.all(reference['status'] == 0)
     assert_same(fast, reference, 1e-8)       # the tracker locates events to 1e-9 in s
+
+
+@pytest.mark.parametrize('kind, values, legs, guess, tols, scalar', [
+    ('range', dict(rho=0.5, F=5.0), (), (-1.0, -1.0), ['k=5%', 'L2=0.001'], 0),
+    ('path', dict(rho=0.5, F=5.0), [dict(rho=0.157)], (-1.0, -1.0), ['L2=normal:0.001'], 0),
+    ('range', dict(rho=0.75, F=-10.0), (), None, ['kc=5%'], 64),        # exact symmetry
+    ('range', dict(rho=0.5, L2=1.3), (), None, ['L2=0.02'], 64),        # unloaded
+])
+def test_generic_samples_are_vectorised_and_symmetric_ones_scalar(kind, values, legs, guess,
+                                                                   tols, scalar):
+    batch, _, w = sampled(kind, values, legs, guess, tols, 64)
+    assert batch.evaluate(w)['scalar'].sum() == scalar
 
 
 def test_some_samples_jump_near_c1_and_some_do_not():

@@ -134,7 +134,7 @@ class OperatingRange:
     #: Figures, in report order.
     FIGURES = ('rho_min', 'rho_max', 'width', 'margin_below', 'margin_above',
                'lower_kind', 'upper_kind', 'jumps_below', 'jumps_above',
-               'num_stable', 'bistable', 'start_theta1', 'start_theta2', 'status')
+               'num_stable', 'bistable', 'start_theta1', 'start_theta2', 'scalar', 'status')
     #: 0/1 figures whose probability (with its interval) is reported.
     EVENTS = ('bistable', 'jumps_below', 'jumps_above')
     #: The figure whose smallest values are the worst samples.
@@ -198,6 +198,7 @@ class OperatingRange:
         rows_ok = gen[keep]
         lower, upper = end_s[:n][keep], end_s[n:][keep]
         out['status'][rows_ok] = OK
+        out['scalar'][rows_ok] = 0.0
         out['rho_min'][rows_ok], out['rho_max'][rows_ok] = lower, upper
         out['width'][rows_ok] = upper - lower
         out['margin_below'][rows_ok] = rho[keep] - lower
@@ -221,6 +222,7 @@ class OperatingRange:
 
     def evaluate_one(self, row, g, out, i):
         """The scalar reference for sample ``i`` (``tensegrity range`` and ``solve``)."""
+        out['scalar'][i] = 1.0
         try:
             p = ModuleParams.from_vector(row, g=g)
         except InvalidParameterError:
@@ -279,7 +281,7 @@ class PlannedPath:
             base += ['jump_F3', 'jump_F4']
             base += [f'landing_{n}_theta{j}' for n in self.names for j in (1, 2)]
             base += ['final_head_x', 'final_head_y', 'final_head_angle']
-        return tuple(base) + ('status',)
+        return tuple(base) + ('scalar', 'status')
 
     def evaluate(self, waypoints, g=STANDARD_GRAVITY):
         waypoints = np.asarray(waypoints, dtype=float)
@@ -365,6 +367,7 @@ class PlannedPath:
         rows = gen[~failed]
         keep = ~failed
         out['status'][rows] = OK
+        out['scalar'][rows] = 0.0
         out['jumped'][rows] = (jumps[keep] > 0).astype(float)
         out['jumps'][rows] = jumps[keep]
         out['final_theta1'][rows], out['final_theta2'][rows] = _wrap(t1[keep]), _wrap(t2[keep])
@@ -384,6 +387,7 @@ class PlannedPath:
 
     def evaluate_one(self, sample, g, out, i):
         """The scalar reference for sample ``i`` (``tensegrity track``, leg by leg)."""
+        out['scalar'][i] = 1.0
         try:
             stops = [modules_of(v, g) for v in sample]
         except InvalidParameterError:
@@ -453,7 +457,7 @@ class HeadLoad(PlannedPath):
 
     def figures(self, names=None):
         return ('critical_load', 'critical_F3', 'critical_F4', 'collapse_kind',
-                'collapsed', 'buckled_before', 'status')
+                'collapsed', 'buckled_before', 'scalar', 'status')
 
     def evaluate(self, waypoints, g=STANDARD_GRAVITY):
         waypoints = np.asarray(waypoints, dtype=float)
@@ -463,6 +467,7 @@ class HeadLoad(PlannedPath):
         return out
 
     def evaluate_one(self, sample, g, out, i):
+        out['scalar'][i] = 1.0
         try:
             a, b = (modules_of(v, g) for v in sample[:2])
         except InvalidParameterError:

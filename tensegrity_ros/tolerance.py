@@ -32,7 +32,7 @@ import numpy as np
 
 from .core.module import PARAMETER_NAMES, STANDARD_GRAVITY
 from .core.tolerance_questions import (KIND_NAMES, STATUS_NAMES, HeadLoad, OperatingRange,
-                                       PlannedPath, evaluate_chunk)
+                                       PlannedPath, code_fingerprint, evaluate_chunk)
 from .core.tolerance_sampling import (SAMPLERS, Tolerance, parse_spread, sample_waypoints,
                                       unit_samples)
 from .core.tolerance_statistics import (QUANTILES, noise_level, proportion_interval,
@@ -290,7 +290,7 @@ def tolerance_study(design, question, tolerances, samples=1024, *, seed=0, sampl
     tols = parse_tolerances(tolerances, design)
     q = question if not isinstance(question, str) else question_for(
         question, design, at_rho=at_rho, rho_bounds=rho_bounds, exact=exact)
-    size = chunk or chunk_size(q.name, design.modules, samples)
+    size = min(chunk or chunk_size(q.name, design.modules, samples), samples)
     if size < 1:
         raise ToleranceError(f'--chunk must be >= 1, got {size}')
     unit = unit_samples(samples, len(tols), sampler, seed)
@@ -299,7 +299,7 @@ def tolerance_study(design, question, tolerances, samples=1024, *, seed=0, sampl
     from .tolerance_engine import run_chunks
     results, run = run_chunks(evaluate_chunk, chunks, processes=processes,
                               scheduler=scheduler, progress=progress,
-                              sizes=[len(c[3]) for c in chunks])
+                              sizes=[len(c[3]) for c in chunks], fingerprint=code_fingerprint)
     figures = {name: np.concatenate([r[name] for r in results]) for name in q.figures()}
     inputs = np.column_stack([t.values(design.stops[0, t.module,
                                                     PARAMETER_NAMES.index(t.field)], unit[:, j])

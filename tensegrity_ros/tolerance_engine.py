@@ -56,19 +56,25 @@ def cores():
         return os.cpu_count() or 1
 
 
+class WorkerMismatch(RuntimeError):
+    """A worker runs other code than this process (another version of the package)."""
+
+
 def run_chunks(function, chunks, *, processes=None, scheduler=None, progress=False,
-               retries=2, sizes=None, description='samples'):
+               retries=2, sizes=None, description='samples', fingerprint=None):
     """``[function(*chunk) for chunk in chunks]`` on the chosen engine, in chunk order.
 
     ``function`` returns ``(result, wall_seconds, cpu_seconds)`` of its own work.
-    ``sizes``: samples per chunk, for the progress bar.  Returns (results, EngineRun).
+    ``sizes``: samples per chunk, for the progress bar.  ``fingerprint``: a function
+    whose value every worker must share with this process (the code's digest), checked
+    before any chunk runs (:class:`WorkerMismatch`).  Returns (results, EngineRun).
     """
     chunks = list(chunks)
     sizes = list(sizes) if sizes is not None else [1] * len(chunks)
     if scheduler is None and processes == 1:
         return _run_here(function, chunks, progress, sizes, description)
     return _run_dask(function, chunks, processes, scheduler, progress, retries, sizes,
-                     description)
+                     description, fingerprint)
 
 
 def _bar(progress, total, description):
@@ -96,7 +102,24 @@ def _run_here(function, chunks, progress, sizes, description):
                               len(chunks))
 
 
-def _run_dask(function, chunks, processes, scheduler, progress, retries, sizes, description):
+def _check_workers(client, fingerprint):
+    mine = fingerprint()
+    try:
+        theirs = client.run(fingerprint)
+    except Exception as exc:            # e.g. an older package without this function
+        raise WorkerMismatch(f'the workers cannot run this tensegrity_ros code ({exc}): '
+                             f'install the same version on every worker and restart them') \
+            from None
+    other = sorted(w for w, value in theirs.items() if value != mine)
+    if other:
+        raise WorkerMismatch(f'{len(other)} of {len(theirs)} workers run other tensegrity_ros '
+                             f'code than this process (e.g. {other[0]}: '
+                             f'{theirs[other[0]]} != {mine}): install the same version on '
+                             f'every worker and restart them')
+
+
+def _run_dask(function, chunks, processes, scheduler, progress, retries, sizes, description,
+              fingerprint=None):
     import logging
 
     from distributed import Client, LocalCluster, as_completed
@@ -120,6 +143,8 @@ def _run_dask(function, chunks, processes, scheduler, progress, retries, sizes, 
         if workers == 0:
             client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
             workers = len(client.scheduler_info().get('workers', {}))
+        if fingerprint is not None:
+            _check_workers(client, fingerprint)
         startup = time.perf_counter() - t0
         t1 = time.perf_counter()
         token = f'{os.getpid()}-{time.time_ns()}'

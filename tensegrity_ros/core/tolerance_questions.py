@@ -21,7 +21,10 @@ functions for all (the reference the vectorised path is tested against).
 """
 from __future__ import annotations
 
+import functools
+import hashlib
 import math
+import pathlib
 import time
 from dataclasses import dataclass
 
@@ -496,6 +499,17 @@ class HeadLoad(PlannedPath):
         out['critical_F3'][i], out['critical_F4'][i] = tops[0].f3y, tops[0].f4y
         out['critical_load'][i] = -(tops[0].f3y + tops[0].f4y)
         out['collapse_kind'][i] = KIND_CODES[first.kind]
+
+
+@functools.lru_cache(maxsize=1)
+def code_fingerprint():
+    """A digest of the core's source: the code every sample's answer comes from.  A
+    cluster's workers must run the same (else the same seed could answer differently)."""
+    digest = hashlib.sha256()
+    for path in sorted(pathlib.Path(__file__).parent.glob('*.py')):
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
 
 
 def evaluate_chunk(question, nominal, tolerances, unit, g=STANDARD_GRAVITY):

@@ -35,8 +35,8 @@ from .core.tolerance_questions import (KIND_NAMES, STATUS_NAMES, HeadLoad, Opera
                                        PlannedPath, code_fingerprint, evaluate_chunk)
 from .core.tolerance_sampling import (SAMPLERS, Tolerance, parse_spread, sample_waypoints,
                                       unit_samples)
-from .core.tolerance_statistics import (QUANTILES, noise_level, proportion_interval,
-                                        quantiles, rank_correlations)
+from .core.tolerance_statistics import (noise_level, proportion_interval, quantiles,
+                                        rank_correlations)
 from .problem import APPLY_ORDER, DEFAULT_FIELDS, PARAMETERS
 
 QUESTIONS = ('range', 'path', 'head-load')

@@ -158,7 +158,8 @@ def neck_config(design, stops):
                   f'      force_a3: [{_yaml_num(f["f3x"])}, {_yaml_num(f["f3y"])}]',
                   f'      force_a4: [{_yaml_num(f["f4x"])}, {_yaml_num(f["f4y"])}]',
                   f'      rho_initial: {_yaml_num(rhos[i])}',
-                  f'      rho_min: {_yaml_num(lo)}', f'      rho_max: {_yaml_num(max(hi, lo * 4))}']
+                  f'      rho_min: {_yaml_num(lo)}',
+                  f'      rho_max: {_yaml_num(max(hi, lo * 4))}']
         if guess is not None:
             lines.append(f'      initial_theta: [{_yaml_num(guess[i][0])}, '
                          f'{_yaml_num(guess[i][1])}]')

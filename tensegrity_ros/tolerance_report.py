@@ -29,7 +29,8 @@ def report_text(s):
                  f'start-up {e["startup_seconds"]:.2f} s; overhead {100 * e["overhead"]:.1f} %)')
     lines.append('tolerances: ' + ', '.join(
         f'{t["parameter"]} = {_g(t["nominal"])}'
-        + (f' +- {t["spec"]}' if t['distribution'] == 'uniform' else f', {t["spec"]}') for t in s['tolerances']))
+        + (f' +- {t["spec"]}' if t['distribution'] == 'uniform' else f', {t["spec"]}')
+        for t in s['tolerances']))
     if s['figures']:
         width = max(len(n) for n in s['figures'])
         head = ['figure'.ljust(width), 'count'.rjust(6)] + [q.rjust(12) for q in

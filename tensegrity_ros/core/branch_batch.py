@@ -121,7 +121,8 @@ def _mode(h11, h12, h22, lam):
     b = np.where(first, lam - h11, h12)
     n = np.hypot(a, b)
     safe = n > 0
-    return np.where(safe, a / np.where(safe, n, 1.0), 1.0), np.where(safe, b / np.where(safe, n, 1.0), 0.0)
+    n = np.where(safe, n, 1.0)
+    return np.where(safe, a / n, 1.0), np.where(safe, b / n, 0.0)
 
 
 def _wrap(a):
@@ -354,7 +355,8 @@ def _localise(fam, rows, t1, t2, s, sigma, est, dt1, dt2, relative_s):
         second = _eig2(h11, h12, h22)[1] > 0.0
         pred1 = t1[ahead] + 2 * (r[ahead] - s[ahead]) * dt1[ahead]
         pred2 = t2[ahead] + 2 * (r[ahead] - s[ahead]) * dt2[ahead]
-        gap = np.maximum(np.abs(_wrap(t1[ahead] - e1[ahead])), np.abs(_wrap(t2[ahead] - e2[ahead])))
+        gap = np.maximum(np.abs(_wrap(t1[ahead] - e1[ahead])),
+                         np.abs(_wrap(t2[ahead] - e2[ahead])))
         near = (np.abs(_wrap(pred1 - e1[ahead])) <= 0.35 * gap + 1e-7) \
             & (np.abs(_wrap(pred2 - e2[ahead])) <= 0.35 * gap + 1e-7)
         found[ahead] = second & near
@@ -420,12 +422,12 @@ def upper_start(rows, g):
 
 def settle_start(rows, g, guess):
     """The stable equilibrium each row's mechanism settles into from ``guess``:
-    (t1, t2, decided, number of stable equilibria).  Decided where the row has one stable equilibrium (every flow
-    ends there) or where a damped gradient flow from the guess comes to rest in one of
-    the two minima's convex neighbourhood, the same with half the step (the flow is
-    integrated by Runge-Kutta; a guess near the boundary of two basins, where the
-    discretisation could decide, lands differently and is not decided); the others go
-    to the scalar settle."""
+    (t1, t2, decided, number of stable equilibria).  Decided where the row has one
+    stable equilibrium (every flow ends there) or where the gradient flow from the guess
+    (:func:`_flow`, Runge-Kutta) comes to rest in one of the two minima, the same with
+    half the step (a guess near the boundary of two basins, where the discretisation
+    could decide, lands differently and is not decided); the others go to the scalar
+    settle."""
     theta, stable, _ = stable_equilibria(rows, g)
     count = stable.sum(axis=1)
     m = len(rows)

@@ -423,11 +423,12 @@ def upper_start(rows, g):
 def settle_start(rows, g, guess):
     """The stable equilibrium each row's mechanism settles into from ``guess``:
     (t1, t2, decided, number of stable equilibria).  Decided where the row has one
-    stable equilibrium (every flow ends there) or where the gradient flow from the guess
-    (:func:`_flow`, Runge-Kutta) comes to rest in one of the two minima, the same with
-    half the step (a guess near the boundary of two basins, where the discretisation
-    could decide, lands differently and is not decided); the others go to the scalar
-    settle."""
+    stable equilibrium (every flow ends there), or where the gradient flow from the guess
+    (:func:`_flow_to_ball`, Runge-Kutta) enters a ball about one of the two minima on
+    which the energy is strongly convex (:func:`_convex_radius`: a flow that enters it
+    ends at its minimum), the same with half the step (a guess near the boundary of two
+    basins, where the discretisation could decide, lands differently and is not
+    decided); the others go to the scalar settle."""
     theta, stable, _ = stable_equilibria(rows, g)
     count = stable.sum(axis=1)
     m = len(rows)
@@ -440,61 +441,65 @@ def settle_start(rows, g, guess):
         decided[one] = True
     two = np.nonzero(count == 2)[0]
     if two.size:
-        fam = _Family(rows[two], np.zeros_like(rows[two]), g)
+        c = _Family(rows[two], np.zeros_like(rows[two]), g).at(np.arange(two.size),
+                                                              np.zeros(two.size))
         mins = theta[two][stable[two].nonzero()].reshape(two.size, 2, 2)
-        pick = np.arange(two.size)
+        radius = _convex_radius(c, mins)
         clear = np.ones(two.size, bool)
         landed = []
         for step in (2.0, 1.0):         # a landing that holds with half the step
-            f1, f2, rest = _flow(fam, np.full(two.size, float(guess[0])),
-                                 np.full(two.size, float(guess[1])), step)
-            d = np.max(np.abs(_wrap(mins - np.stack([f1, f2], -1)[:, None, :])), axis=-1)
-            nearest = np.argmin(d, axis=1)
-            clear &= rest & (d[pick, nearest] < 1e-6) & (d[pick, 1 - nearest] > 1e-3)
-            landed.append(nearest)
+            which = _flow_to_ball(c, np.full(two.size, float(guess[0])),
+                                  np.full(two.size, float(guess[1])), mins, radius, step)
+            clear &= which >= 0
+            landed.append(which)
         clear &= landed[0] == landed[1]
         k = two[clear]
-        t1[k], t2[k] = mins[pick[clear], nearest[clear], 0], mins[pick[clear], nearest[clear], 1]
+        pick = np.nonzero(clear)[0]
+        t1[k], t2[k] = mins[pick, landed[0][clear], 0], mins[pick, landed[0][clear], 1]
         decided[k] = True
     return t1, t2, decided, count
 
 
-def _flow(fam, t1, t2, step=1.0, max_steps=3000):
-    """An overdamped flow d(theta)/dt = -G from (t1, t2) per row: classical Runge-Kutta
-    steps of ``step`` / (a bound on lambda_max) (stable up to 2.78), then Newton once the
-    state is where H is positive definite and the Newton step is small.
-    (t1, t2, at_rest)."""
-    idx = np.arange(len(t1))
-    c = fam.at(idx, np.zeros(len(t1)))
+def _convex_radius(c, mins):
+    """Per row and minimum (m, 2): a radius within which H stays positive definite
+    (lambda_min(H) >= 0.1 lambda_min(H(minimum)), by Weyl's inequality and a bound on
+    the third derivatives).  There (theta - m) . G(theta) >= mu |theta - m|^2, so the
+    distance to the minimum only shrinks along the flow: a flow entering the ball ends
+    at its minimum."""
+    third = math.sqrt(2.0) * (np.maximum(np.abs(c[0]) + np.abs(c[2]),
+                                         np.abs(c[1]) + np.abs(c[3])) + 3.0 * c[4])
+    out = np.zeros(mins.shape[:2])
+    for j in range(2):
+        _, _, h11, h12, h22, _, _ = _gh(c, mins[:, j, 0], mins[:, j, 1])
+        out[:, j] = 0.9 * np.maximum(_eig2(h11, h12, h22)[0], 0.0) / third
+    return out
+
+
+def _flow_to_ball(c, t1, t2, mins, radius, step, max_steps=3000):
+    """The overdamped flow d(theta)/dt = -G from (t1, t2) per row, classical Runge-Kutta
+    steps of ``step`` / (a bound on lambda_max) (stable up to 2.78), until it enters the
+    ball ``radius`` about one of the two minima ``mins`` (m, 2, 2): that minimum's
+    index per row, -1 where it did not within ``max_steps``."""
     h = step / _hessian_scale(c)
     t1, t2 = t1.copy(), t2.copy()
-    rest = np.zeros(len(t1), bool)
-    active = idx.copy()
-    for it in range(max_steps):
-        if active.size == 0:
+    which = np.full(len(t1), -1)
+    active = np.arange(len(t1))
+    for it in range(max_steps + 1):
+        for j in range(2):
+            d = np.hypot(_wrap(t1[active] - mins[active, j, 0]),
+                         _wrap(t2[active] - mins[active, j, 1]))
+            inside = d < radius[active, j]
+            which[active[inside]] = j
+            active = active[~inside]
+        if active.size == 0 or it == max_steps:
             break
         ca = _take(c, active)
         ha = h[active]
         a1, a2 = t1[active], t2[active]
-        g1, g2, h11, h12, h22, _, _ = _gh(ca, a1, a2)
-        k2 = _gh(ca, a1 - 0.5 * ha * g1, a2 - 0.5 * ha * g2)
+        k1 = _gh(ca, a1, a2)
+        k2 = _gh(ca, a1 - 0.5 * ha * k1[0], a2 - 0.5 * ha * k1[1])
         k3 = _gh(ca, a1 - 0.5 * ha * k2[0], a2 - 0.5 * ha * k2[1])
         k4 = _gh(ca, a1 - ha * k3[0], a2 - ha * k3[1])
-        t1[active] = a1 - ha / 6 * (g1 + 2 * k2[0] + 2 * k3[0] + k4[0])
-        t2[active] = a2 - ha / 6 * (g2 + 2 * k2[1] + 2 * k3[1] + k4[1])
-        if it % 8 == 7:
-            lo, _ = _eig2(h11, h12, h22)
-            det = h11 * h22 - h12 * h12
-            convex = (lo > 0) & (det > 0)
-            with np.errstate(divide='ignore', invalid='ignore'):
-                n1 = (h22 * g1 - h12 * g2) / det
-                n2 = (h11 * g2 - h12 * g1) / det
-            small = convex & (np.abs(n1) + np.abs(n2) < 1e-3)
-            if np.any(small):
-                k = active[small]
-                e1, e2, ok = newton(_take(c, k), t1[k], t2[k])
-                fine = ok & (np.abs(e1 - t1[k]) + np.abs(e2 - t2[k]) < 2e-3)
-                t1[k[fine]], t2[k[fine]] = e1[fine], e2[fine]
-                rest[k[fine]] = True
-                active = np.setdiff1d(active, k[fine], assume_unique=True)
-    return t1, t2, rest
+        t1[active] = a1 - ha / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+        t2[active] = a2 - ha / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+    return which

@@ -185,3 +185,27 @@ def test_jump_probability_near_c1_equals_a_direct_loop_over_the_samples():
     assert p['events'] == int(jumped.sum()) and p['trials'] == 512
     assert p['interval'] == pytest.approx(list(proportion_interval(int(jumped.sum()), 512)))
     assert p['interval'][0] <= lost.mean() <= p['interval'][1]
+
+
+def test_a_neck_path_sample_replayed_by_tensegrity_track_config_leg_by_leg(tmp_path):
+    """Two legs of neck commands (m2's rho, then every rho with a head load): the figures
+    of each sample equal `tensegrity track --config` run leg by leg from its file."""
+    design = neck_design('config/neck.yaml', legs=[{'m2.rho': 0.07},
+                                                   {'rho': 0.085, 'F': -2.0}])
+    result = tolerance_study(design, 'path', ['k=3%', 'm1.L1=0.001'], samples=2, processes=1,
+                             worst=2)
+    for w in result.summary()['worst']:
+        (tmp_path / w['config_file']).write_text(w['config'])
+        events, final = [], None
+        assert len(w['replay']) == 2
+        for leg, command in enumerate(w['replay']):
+            code, doc = run_cli(command.replace(w['config_file'],
+                                                str(tmp_path / w['config_file'])))
+            assert code == 0
+            events += [(leg, e) for e in doc['events']]
+            final = doc['final']
+        i = w['index']
+        assert len(events) == result.figures['jumps'][i]
+        assert final['head']['x'] == pytest.approx(result.figures['final_head_x'][i], abs=1e-9)
+        assert final['head']['angle'] == pytest.approx(result.figures['final_head_angle'][i],
+                                                       abs=1e-9)

@@ -84,6 +84,15 @@ def test_planned_path_equals_track_module_sample_by_sample(values, legs, guess, 
     assert_same(fast, reference, 1e-8)       # the tracker locates events to 1e-9 in s
 
 
+@pytest.mark.parametrize('values, tols', [
+    (dict(rho=0.6), ['L2=0.01', 'k=5%', 'F3=0.1']),                 # fold of the upright module
+    (dict(rho=0.6, F=0.5), ['kc=5%']),                               # symmetric: scalar
+])
+def test_a_modules_head_load_equals_track_module(values, tols):
+    batch, exact, w = sampled('head-load', values, [dict(F=-40.0)], None, tols, 24)
+    assert_same(batch.evaluate(w), exact.evaluate(w), 1e-8)
+
+
 @pytest.mark.parametrize('kind, values, legs, guess, tols, scalar', [
     ('range', dict(rho=0.5, F=5.0), (), (-1.0, -1.0), ['k=5%', 'L2=0.001'], 0),
     ('path', dict(rho=0.5, F=5.0), [dict(rho=0.157)], (-1.0, -1.0), ['L2=normal:0.001'], 0),

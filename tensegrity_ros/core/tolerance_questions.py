@@ -464,9 +464,29 @@ class HeadLoad(PlannedPath):
 
     def evaluate(self, waypoints, g=STANDARD_GRAVITY):
         waypoints = np.asarray(waypoints, dtype=float)
+        if self.modules == 1 and not self.exact:
+            return self._evaluate_module_batch(waypoints, g)
         out = _empty(self.figures(), len(waypoints))
         for i, sample in enumerate(waypoints):
             self.evaluate_one(sample, g, out, i)
+        return out
+
+    def _evaluate_module_batch(self, waypoints, g):
+        """One module: the load path vectorised as a planned path; its first jump is the
+        collapse.  (A continuous buckling needs an exact symmetry: such samples, and
+        every other delicate one, are answered by evaluate_one.)"""
+        path = PlannedPath(guess=self.guess, names=self.names)._evaluate_batch(waypoints, g)
+        out = _empty(self.figures(), len(waypoints))
+        fast = path['scalar'] == 0.0
+        out['status'][fast], out['scalar'][fast] = path['status'][fast], 0.0
+        out['collapsed'][fast] = path['jumped'][fast]
+        out['buckled_before'][fast] = 0.0
+        for name, source in (('critical_F3', 'jump_F3'), ('critical_F4', 'jump_F4'),
+                             ('collapse_kind', 'jump_kind')):
+            out[name][fast] = path[source][fast]
+        out['critical_load'][fast] = -(path['jump_F3'][fast] + path['jump_F4'][fast])
+        for i in np.nonzero(~fast)[0]:
+            self.evaluate_one(waypoints[i], g, out, i)
         return out
 
     def evaluate_one(self, sample, g, out, i):

@@ -36,7 +36,7 @@ def add_tolerance_parser(sub, add_parameter_options, finite_float, positive_int)
         'tolerance', help='design under tolerances: sample a toleranced module or neck',
         description='Sample a design whose parameters scatter by the given tolerances '
                     '(--tol), ask every sample one question, and report quantiles (1, 5, 50, '
-                    '95, 99 %%), event probabilities with confidence intervals, rank '
+                    '95, 99 %), event probabilities with confidence intervals, rank '
                     'correlations of every figure with every tolerance, and the worst samples '
                     'as command lines that replay them. Runs on dask.distributed: a '
                     'LocalCluster of all cores by default, --processes 1 in this process, '

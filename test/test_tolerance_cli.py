@@ -133,3 +133,12 @@ def test_the_same_seed_gives_the_same_report_and_another_seed_another():
     c = json.loads(run(argv + ['--seed', '1'])[1])
     assert a['figures'] == b['figures'] and a['figures'] != c['figures']
     assert np.isfinite(a['figures']['width']['quantiles']['50%'])
+
+
+def test_a_progress_bar_counts_the_samples():
+    from tensegrity_ros.tolerance import module_design, tolerance_study
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        tolerance_study(module_design(dict(rho=0.5, F=5.0)), 'range', ['k=5%'], samples=2048,
+                        chunk=512, processes=1, progress=True)
+    assert '2048/2048' in err.getvalue() and 'samples/s' in err.getvalue()

@@ -47,7 +47,7 @@ FOLD, LIMIT = 0, 2
 _I = {name: i for i, name in enumerate(PARAMETER_NAMES)}
 
 
-class _Family:
+class PathFamily:
     """The path coefficients of rows moving along P0 + s dP (arrays (m, 12)).
 
     A1, A2, K are cubic and C1, C2 quadratic in s (products of the parameters, each
@@ -96,7 +96,7 @@ def _trig(t1, t2):
     return s1, c1, s2, c2, s1 * c2 + c1 * s2, c1 * c2 - s1 * s2
 
 
-def _gh(c, t1, t2):
+def gradient_hessian(c, t1, t2):
     """(g1, g2, h11, h12, h22, K sin(t1 + t2), trig) for coefficients ``c``."""
     A1, A2, C1, C2, K = c[:5]
     s1, c1, s2, c2, s12, c12 = tr = _trig(t1, t2)
@@ -105,7 +105,7 @@ def _gh(c, t1, t2):
             A1 * c1 - kc + C1 * s1, -kc, A2 * c2 - kc + C2 * s2, ks, tr)
 
 
-def _eig2(h11, h12, h22):
+def eigenvalues_2x2(h11, h12, h22):
     """Ascending eigenvalues of the symmetric 2x2 matrices (small one accurate)."""
     mean = 0.5 * (h11 + h22)
     big = mean + np.copysign(np.hypot(0.5 * (h11 - h22), h12), mean)
@@ -148,7 +148,7 @@ def newton(c, t1, t2, max_iter=12):
             break
         ca = _take(c, active)
         a1, a2 = t1[active], t2[active]
-        g1, g2, h11, h12, h22, _, _ = _gh(ca, a1, a2)
+        g1, g2, h11, h12, h22, _, _ = gradient_hessian(ca, a1, a2)
         res = np.maximum(np.abs(g1), np.abs(g2))
         residual[active] = res
         det = h11 * h22 - h12 * h12
@@ -174,7 +174,7 @@ def newton(c, t1, t2, max_iter=12):
 def _branch_state(c, t1, t2):
     """At equilibria: (lambda_min, lambda_max, dtheta/ds, dlambda_min/ds)."""
     A1, A2, C1, C2, K, dA1, dA2, dC1, dC2, dK, _ = c
-    g1, g2, h11, h12, h22, ks, (s1, c1, s2, c2, s12, c12) = _gh(c, t1, t2)
+    g1, g2, h11, h12, h22, ks, (s1, c1, s2, c2, s12, c12) = gradient_hessian(c, t1, t2)
     gs1 = dA1 * s1 - dK * s12 - dC1 * c1
     gs2 = dA2 * s2 - dK * s12 - dC2 * c2
     hs11 = dA1 * c1 - dK * c12 + dC1 * s1
@@ -185,7 +185,7 @@ def _branch_state(c, t1, t2):
     safe = np.where(zero, 1.0, det)
     dt1 = np.where(zero, 0.0, -(h22 * gs1 - h12 * gs2) / safe)
     dt2 = np.where(zero, 0.0, -(h11 * gs2 - h12 * gs1) / safe)
-    lo, hi = _eig2(h11, h12, h22)
+    lo, hi = eigenvalues_2x2(h11, h12, h22)
     v1, v2 = _mode(h11, h12, h22, lo)
     dh11 = hs11 - g1 * dt1 + ks * dt2
     dh22 = hs22 + ks * dt1 - g2 * dt2
@@ -207,7 +207,7 @@ def _fold_newton(fam, idx, t1, t2, s, relative_s, max_iter=16):
         a1, a2, sa = t1[active], t2[active], s[active]
         c = fam.at(idx[active], sa)
         dA1, dA2, dC1, dC2, dK = c[5:10]
-        g1, g2, h11, h12, h22, ks, (s1, c1, s2, c2, s12, c12) = _gh(c, a1, a2)
+        g1, g2, h11, h12, h22, ks, (s1, c1, s2, c2, s12, c12) = gradient_hessian(c, a1, a2)
         gs1 = dA1 * s1 - dK * s12 - dC1 * c1
         gs2 = dA2 * s2 - dK * s12 - dC2 * c2
         hs11 = dA1 * c1 - dK * c12 + dC1 * s1
@@ -320,8 +320,8 @@ def follow(fam, idx, t1, t2, s0, sigma, bound, scale_len, relative_s, stop_at_bo
             & (np.abs(_wrap(n2 - p2)) <= 0.05 + 0.5 * st * speed[go])
         good = close.copy()
         if np.any(close):
-            _, _, h11, h12, h22, _, _ = _gh(_take(cn, close), n1[close], n2[close])
-            lam_new = _eig2(h11, h12, h22)[0]
+            _, _, h11, h12, h22, _, _ = gradient_hessian(_take(cn, close), n1[close], n2[close])
+            lam_new = eigenvalues_2x2(h11, h12, h22)[0]
             good[close] = (lam_new > 0.0) | (to_bound[go][close]
                                               & (lam_new > -1e-12 * scale_h[go][close]))
         bad_rows, good_rows = g_idx[~good], g_idx[good]
@@ -351,8 +351,8 @@ def _localise(fam, rows, t1, t2, s, sigma, est, dt1, dt2, relative_s):
     found = ahead.copy()
     if np.any(ahead):
         c = fam.at(rows[ahead], r[ahead])
-        _, _, h11, h12, h22, _, _ = _gh(c, e1[ahead], e2[ahead])
-        second = _eig2(h11, h12, h22)[1] > 0.0
+        _, _, h11, h12, h22, _, _ = gradient_hessian(c, e1[ahead], e2[ahead])
+        second = eigenvalues_2x2(h11, h12, h22)[1] > 0.0
         pred1 = t1[ahead] + 2 * (r[ahead] - s[ahead]) * dt1[ahead]
         pred2 = t2[ahead] + 2 * (r[ahead] - s[ahead]) * dt2[ahead]
         gap = np.maximum(np.abs(_wrap(t1[ahead] - e1[ahead])),
@@ -368,10 +368,10 @@ def fold_is_branch_point(fam, rows, t1, t2, s):
     orthogonal to dG/ds (operation_range's _kind_at)."""
     c = fam.at(rows, s)
     dA1, dA2, dC1, dC2, dK = c[5:10]
-    g1, g2, h11, h12, h22, _, (s1, c1, s2, c2, s12, c12) = _gh(c, t1, t2)
+    g1, g2, h11, h12, h22, _, (s1, c1, s2, c2, s12, c12) = gradient_hessian(c, t1, t2)
     gs1 = dA1 * s1 - dK * s12 - dC1 * c1
     gs2 = dA2 * s2 - dK * s12 - dC2 * c2
-    lo, hi = _eig2(h11, h12, h22)
+    lo, hi = eigenvalues_2x2(h11, h12, h22)
     lam = np.where(np.abs(lo) <= np.abs(hi), lo, hi)
     v1, v2 = _mode(h11, h12, h22, lam)
     norm = np.hypot(gs1, gs2)
@@ -441,7 +441,7 @@ def settle_start(rows, g, guess):
         decided[one] = True
     two = np.nonzero(count == 2)[0]
     if two.size:
-        c = _Family(rows[two], np.zeros_like(rows[two]), g).at(np.arange(two.size),
+        c = PathFamily(rows[two], np.zeros_like(rows[two]), g).at(np.arange(two.size),
                                                               np.zeros(two.size))
         mins = theta[two][stable[two].nonzero()].reshape(two.size, 2, 2)
         radius = _convex_radius(c, mins)
@@ -470,8 +470,8 @@ def _convex_radius(c, mins):
                                          np.abs(c[1]) + np.abs(c[3])) + 3.0 * c[4])
     out = np.zeros(mins.shape[:2])
     for j in range(2):
-        _, _, h11, h12, h22, _, _ = _gh(c, mins[:, j, 0], mins[:, j, 1])
-        out[:, j] = 0.9 * np.maximum(_eig2(h11, h12, h22)[0], 0.0) / third
+        _, _, h11, h12, h22, _, _ = gradient_hessian(c, mins[:, j, 0], mins[:, j, 1])
+        out[:, j] = 0.9 * np.maximum(eigenvalues_2x2(h11, h12, h22)[0], 0.0) / third
     return out
 
 
@@ -496,10 +496,10 @@ def _flow_to_ball(c, t1, t2, mins, radius, step, max_steps=3000):
         ca = _take(c, active)
         ha = h[active]
         a1, a2 = t1[active], t2[active]
-        k1 = _gh(ca, a1, a2)
-        k2 = _gh(ca, a1 - 0.5 * ha * k1[0], a2 - 0.5 * ha * k1[1])
-        k3 = _gh(ca, a1 - 0.5 * ha * k2[0], a2 - 0.5 * ha * k2[1])
-        k4 = _gh(ca, a1 - ha * k3[0], a2 - ha * k3[1])
+        k1 = gradient_hessian(ca, a1, a2)
+        k2 = gradient_hessian(ca, a1 - 0.5 * ha * k1[0], a2 - 0.5 * ha * k1[1])
+        k3 = gradient_hessian(ca, a1 - 0.5 * ha * k2[0], a2 - 0.5 * ha * k2[1])
+        k4 = gradient_hessian(ca, a1 - ha * k3[0], a2 - ha * k3[1])
         t1[active] = a1 - ha / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
         t2[active] = a2 - ha / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
     return which

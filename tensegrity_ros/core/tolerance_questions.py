@@ -113,8 +113,8 @@ def _landings(fam, rows, s, t1, t2, g):
 
 def _stable_at(fam, idx, s, t1, t2):
     """lambda_min > DEGENERACY_TOL |lambda_max| (operation_range's start test)."""
-    _, _, h11, h12, h22, _, _ = bb._gh(fam.at(idx, s), t1, t2)
-    lo, hi = bb._eig2(h11, h12, h22)
+    _, _, h11, h12, h22, _, _ = bb.gradient_hessian(fam.at(idx, s), t1, t2)
+    lo, hi = bb.eigenvalues_2x2(h11, h12, h22)
     return lo > DEGENERACY_TOL * np.abs(hi)
 
 
@@ -168,7 +168,7 @@ class OperatingRange:
         t1, t2, decided, count = _start(rows[gen], g, self.guess)
         base = rows[gen].copy()
         base[:, 0] = 0.0
-        fam = bb._Family(base, e_rho[gen], g)
+        fam = bb.PathFamily(base, e_rho[gen], g)
         rho = rows[gen, 0]
         local = np.arange(len(gen))
         p1, p2, ok = bb.newton(fam.at(local, rho), t1, t2)
@@ -177,7 +177,7 @@ class OperatingRange:
         scalar[gen[~good]] = True
         gen, p1, p2, rho, count = gen[good], p1[good], p2[good], rho[good], count[good]
         base = base[good]
-        fam = bb._Family(base, e_rho[gen], g)
+        fam = bb.PathFamily(base, e_rho[gen], g)
         L = rows[gen, 1] + rows[gen, 2]
         lo_b = np.zeros(len(gen)) if self.rho_bounds is None else \
             np.full(len(gen), float(self.rho_bounds[0]))
@@ -310,7 +310,7 @@ class PlannedPath:
         gen = np.nonzero(~scalar)[0]
         guess = None if self.guess is None else self.guess[0]
         t1, t2, decided, _ = _start(stops[gen, 0], g, guess)
-        fam = bb._Family(stops[gen, 0], stops[gen, 1] - stops[gen, 0], g)
+        fam = bb.PathFamily(stops[gen, 0], stops[gen, 1] - stops[gen, 0], g)
         local = np.arange(len(gen))
         zero = np.zeros(len(gen))
         t1, t2, ok = bb.newton(fam.at(local, zero), t1, t2)
@@ -327,7 +327,7 @@ class PlannedPath:
         for leg in range(k_stops - 1):
             p0 = stops[gen, leg]
             dp = stops[gen, leg + 1] - p0
-            fam = bb._Family(p0, dp, g)
+            fam = bb.PathFamily(p0, dp, g)
             live = np.nonzero(~failed)[0]
             s0 = np.zeros(live.size)
             for _ in range(bb.MAX_EVENTS + 1):

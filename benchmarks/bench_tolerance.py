@@ -111,18 +111,23 @@ def main():
                     result, run, cpu = timed(design, question, tols, n, **kwargs)
                     rate = n / run.wall_seconds
                     if engine not in best or rate > best[engine][0]:
-                        best[engine] = (rate, cpu / n, run, result.chunk)
+                        best[engine] = (rate, cpu / n, run, result.chunk, load())
             one, two = best['1 process'][0], best['LocalCluster x2'][0]
-            for engine, (rate, cpu, run, chunk) in best.items():
+            for engine, (rate, cpu, run, chunk, during) in best.items():
                 vs = f', x{rate / base:.1f} the scalar reference' if base else ''
                 print(f'{name}: {engine:15s} {n} samples in {run.chunks} chunks of {chunk}: '
-                      f'{rate:9.0f} samples/s, CPU {1e6 * cpu:.0f} us/sample, chunk '
+                      f'{rate:9.0f} samples/s, CPU {1e6 * cpu:.0f} us/sample '
+                      f'({1 / cpu:.0f} samples per CPU-second), chunk '
                       f'{run.chunk_seconds / run.chunks:.3f} s, overhead '
-                      f'{100 * run.overhead:.1f} %{vs}')
+                      f'{100 * run.overhead:.1f} %{vs} [load {during}]')
             efficiency = two / (2 * one)
-            print(f'{name}: scaling efficiency on 2 workers: {100 * efficiency:.0f} % '
-                  f'(target {target}/s: {"met" if two >= target else "NOT met"} on 2 workers, '
-                  f'{"met" if one >= target else "not met"} on 1 process)')
+            cpu_efficiency = best['1 process'][1] / best['LocalCluster x2'][1]
+            print(f'{name}: scaling efficiency on 2 workers: {100 * efficiency:.0f} % of wall '
+                  f'time (the machine is shared), {100 * cpu_efficiency:.0f} % of CPU per '
+                  f'sample; target {target}/s: {"met" if two >= target else "NOT met"} on 2 '
+                  f'workers, {"met" if one >= target else "not met"} on 1 process, '
+                  f'{"met" if 2 / best["LocalCluster x2"][1] >= target else "NOT met"} by 2 '
+                  f'free cores at the measured CPU cost')
             rows.append((name, one, two, best['1 process'][1], best['LocalCluster x2'][3],
                          best['LocalCluster x2'][2]))
     finally:

@@ -6,6 +6,9 @@
 * a worker that dies in the middle of a chunk loses no sample (the scheduler reruns it);
 * Ctrl-C (SIGINT to the command's process group, as a terminal sends it) ends the
   command with status 130 and leaves no worker process behind.
+
+The last two start LocalClusters of their own (~5 s each here): they run with
+TENSEGRITY_SLOW_TESTS=1 (``-m slow`` selects them).
 """
 import json
 import os
@@ -24,6 +27,9 @@ from tensegrity_ros.tolerance import module_design, tolerance_study
 from tensegrity_ros.tolerance_engine import run_chunks
 
 BIN = Path(sys.executable).parent
+slow = [pytest.mark.slow,
+        pytest.mark.skipif(not os.environ.get('TENSEGRITY_SLOW_TESTS'),
+                           reason='slow (a LocalCluster of its own): TENSEGRITY_SLOW_TESTS=1')]
 cloudpickle.register_pickle_by_value(sys.modules[__name__])     # workers need no test path
 
 
@@ -88,20 +94,22 @@ def same(a, b):
 def test_same_answer_in_process_on_a_local_cluster_and_on_a_remote_scheduler(remote_scheduler):
     studies = [
         (module_design(dict(rho=0.5, F=5.0), guess=(-1.0, -1.0)), 'range',
-         ['k=5%', 'L2=normal:0.001', 'F3=normal:0.2'], 4096, True),
+         ['k=5%', 'L2=normal:0.001', 'F3=normal:0.2'], 4096, 512, True),
         (module_design(dict(rho=0.5, F=5.0), legs=[dict(rho=0.157), dict(rho=1.2)],
-                       guess=(-1.0, -1.0)), 'path', ['L2=normal:0.001', 'kc=2%'], 1024, False),
+                       guess=(-1.0, -1.0)), 'path', ['L2=normal:0.001', 'kc=2%'], 1024, 256,
+         False),
     ]
-    for design, question, tols, n, on_local_cluster in studies:
-        here = tolerance_study(design, question, tols, samples=n, seed=5, processes=1, chunk=512)
-        remote = tolerance_study(design, question, tols, samples=n, seed=5, chunk=512,
+    for design, question, tols, n, chunk, on_local_cluster in studies:
+        here = tolerance_study(design, question, tols, samples=n, seed=5, processes=1,
+                               chunk=chunk)
+        remote = tolerance_study(design, question, tols, samples=n, seed=5, chunk=chunk,
                                  scheduler=remote_scheduler)
         assert here.run.chunks == remote.run.chunks > 2 and remote.run.workers == 2
         same(here.figures, remote.figures)
         assert json.dumps(here.summary()['figures']) == json.dumps(remote.summary()['figures'])
         if on_local_cluster:            # (one LocalCluster start-up: ~3-5 s here)
             local = tolerance_study(design, question, tols, samples=n, seed=5, processes=2,
-                                    chunk=512)
+                                    chunk=chunk)
             assert local.run.chunks == here.run.chunks and local.run.workers == 2
             same(here.figures, local.figures)
 
@@ -115,6 +123,8 @@ def die_once(marker, index, payload):
     return (index, payload), 0.0, 0.0
 
 
+@slow[0]
+@slow[1]
 def test_a_worker_that_dies_loses_no_sample(tmp_path):
     marker = str(tmp_path / 'died')
     chunks = [(marker, i, list(range(10 * i, 10 * i + 10))) for i in range(4)]
@@ -123,6 +133,8 @@ def test_a_worker_that_dies_loses_no_sample(tmp_path):
     assert results == [(i, list(range(10 * i, 10 * i + 10))) for i in range(4)]
 
 
+@slow[0]
+@slow[1]
 def test_ctrl_c_stops_the_command_and_its_workers():
     command = [str(BIN / 'tensegrity'), 'tolerance', 'path', '--rho', '0.5', '--F', '5',
                '--theta1', '-1', '--theta2', '-1', '--to', 'rho=0.1', '--tol', 'L2=0.01',

@@ -33,14 +33,14 @@ from tensegrity_ros.tolerance import module_design, neck_design, tolerance_study
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), '..')
 
 WORKLOADS = {
-    'a': ('(a) module range', lambda: module_design(dict(rho=0.5, F=5.0), guess=(-1.0, -1.0)),
+    'a': ('(a) module range', lambda: module_design({'rho': 0.5, 'F': 5.0}, guess=(-1.0, -1.0)),
           'range', ['k=5%', 'L2=0.001', 'F3=normal:0.2'], 20000),
-    'b': ('(b) module path', lambda: module_design(dict(rho=0.5, F=5.0),
-                                                   legs=[dict(rho=0.157), dict(rho=1.2)],
+    'b': ('(b) module path', lambda: module_design({'rho': 0.5, 'F': 5.0},
+                                                   legs=[{'rho': 0.157}, {'rho': 1.2}],
                                                    guess=(-1.0, -1.0)),
           'path', ['k=5%', 'L2=normal:0.001', 'F3=normal:0.2'], 1000),
     'c': ('(c) neck of 3 head load', lambda: neck_design(os.path.join(ROOT, 'config/neck.yaml'),
-                                                         legs=[dict(F=-9.0)]),
+                                                         legs=[{'F': -9.0}]),
           'head-load', ['k=3%', 'L1=0.0005', 'L2=0.0005'], 50),
 }
 
@@ -106,8 +106,8 @@ def main():
                 base = None
             best = {}
             for _ in range(args.repeat):
-                for engine, kwargs in (('1 process', dict(processes=1)),
-                                       ('LocalCluster x2', dict(scheduler=address))):
+                for engine, kwargs in (('1 process', {'processes': 1}),
+                                       ('LocalCluster x2', {'scheduler': address})):
                     result, run, cpu = timed(design, question, tols, n, **kwargs)
                     rate = n / run.wall_seconds
                     if engine not in best or rate > best[engine][0]:

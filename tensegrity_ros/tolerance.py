@@ -24,17 +24,17 @@ not depend on its chunk, nor on where or when the chunk ran).
 from __future__ import annotations
 
 import csv
+from dataclasses import dataclass, field
 import json
 import math
 import os
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from .core.module import PARAMETER_NAMES, STANDARD_GRAVITY
-from .core.tolerance_questions import (KIND_NAMES, STATUS_NAMES, HeadLoad, OperatingRange,
-                                       PlannedPath, code_fingerprint, evaluate_chunk)
-from .core.tolerance_sampling import (SAMPLERS, Tolerance, parse_spread, sample_waypoints,
+from .core.tolerance_questions import (code_fingerprint, evaluate_chunk, HeadLoad,
+                                       KIND_NAMES, OperatingRange, PlannedPath, STATUS_NAMES)
+from .core.tolerance_sampling import (parse_spread, sample_waypoints, SAMPLERS, Tolerance,
                                       unit_samples)
 from .core.tolerance_statistics import (noise_level, proportion_interval, quantiles,
                                         rank_correlations)

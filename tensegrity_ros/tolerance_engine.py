@@ -18,9 +18,9 @@ closes the client and the LocalCluster (its worker processes end) before it prop
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import os
 import time
-from dataclasses import dataclass
 
 #: Seconds to wait for a scheduler to answer before giving up.
 CONNECT_TIMEOUT = 30.0

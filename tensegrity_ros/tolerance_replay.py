@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .core.module import PARAMETER_NAMES, ModuleParams
+from .core.module import ModuleParams, PARAMETER_NAMES
 from .core.stack import Stack, track_stack
 from .core.start_state import start_state
 from .core.tracking import track_module
@@ -164,4 +164,3 @@ def neck_config(design, stops):
             lines.append(f'      initial_theta: [{_yaml_num(guess[i][0])}, '
                          f'{_yaml_num(guess[i][1])}]')
     return '\n'.join(lines) + '\n'
-

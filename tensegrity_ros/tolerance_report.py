@@ -33,9 +33,8 @@ def report_text(s):
         for t in s['tolerances']))
     if s['figures']:
         width = max(len(n) for n in s['figures'])
-        head = ['figure'.ljust(width), 'count'.rjust(6)] + [q.rjust(12) for q in
-                                                          next(iter(s['figures'].values()))
-                                                          ['quantiles']]
+        levels = next(iter(s['figures'].values()))['quantiles']
+        head = ['figure'.ljust(width), 'count'.rjust(6)] + [q.rjust(12) for q in levels]
         lines += ['', 'quantiles:', '  ' + ' '.join(head)]
         for name, f in s['figures'].items():
             lines.append('  ' + ' '.join([name.ljust(width), str(f['count']).rjust(6)]
@@ -71,9 +70,9 @@ def report_text(s):
     if s['worst']:
         lines += ['', f'worst samples (by {s["worst"][0]["figure"]}):']
         for w in s['worst']:
+            values = ', '.join(f'{k}={_g(v, 10)}' for k, v in w['parameters'].items())
             lines.append(f'  #{w["index"]}: {w["figure"]} = {_g(w["value"], 8)} '
-                         f'({w["status"]}); ' + ', '.join(f'{k}={_g(v, 10)}' for k, v in
-                                                        w['parameters'].items()))
+                         f'({w["status"]}); {values}')
             if w.get('config'):
                 lines.append(f'    config {w["config_file"]}: write the "config" text of the '
                              f'JSON report (or --replay-dir)')

@@ -13,39 +13,39 @@ from tensegrity_ros.tolerance import module_design, parse_tolerances, question_f
 
 RANGE_CASES = [
     # lower branch of fig. 8a: folds at both ends (C1 imperfect, C2)
-    (dict(rho=0.5, F=5.0), (-1.0, -1.0), ['k=5%', 'L2=0.001', 'F3=normal:0.2']),
+    ({'rho': 0.5, 'F': 5.0}, (-1.0, -1.0), ['k=5%', 'L2=0.001', 'F3=normal:0.2']),
     # its upper branch: stable over the whole search interval (limits)
-    (dict(rho=0.5, F=5.0), None, ['k=5%', 'L2=0.01']),
+    ({'rho': 0.5, 'F': 5.0}, None, ['k=5%', 'L2=0.01']),
     # fig. 7 (pushing, L2 = 3/2), both branches
-    (dict(rho=0.7, F=-10.0, L2=1.5), None, ['k=5%', 'L2=0.01', 'F3=0.5']),
-    (dict(rho=0.7, F=-10.0, L2=1.5), (-0.5, -0.5), ['ka=2%', 'L1=normal:0.01:3']),
+    ({'rho': 0.7, 'F': -10.0, 'L2': 1.5}, None, ['k=5%', 'L2=0.01', 'F3=0.5']),
+    ({'rho': 0.7, 'F': -10.0, 'L2': 1.5}, (-0.5, -0.5), ['ka=2%', 'L1=normal:0.01:3']),
     # mixed loads, horizontal loads and rod weights
-    (dict(rho=1.0, F3=3.0, F4=-2.0, L2=0.8, F3x=0.5, m1=0.2, m2=0.1), None,
+    ({'rho': 1.0, 'F3': 3.0, 'F4': -2.0, 'L2': 0.8, 'F3x': 0.5, 'm1': 0.2, 'm2': 0.1}, None,
      ['k=10%', 'L1=0.05', 'F=1', 'm1=20%']),
     # nearly symmetric: ends at imperfect branch points (sharp turns)
-    (dict(rho=0.5, F=5.0), (-1.0, -1.0), ['L2=normal:1e-7']),
+    ({'rho': 0.5, 'F': 5.0}, (-1.0, -1.0), ['L2=normal:1e-7']),
     # exactly symmetric samples (only the shared spring factor... each spring varies,
     # but L1 = L2 and F3 = F4 stay equal only for kc): swap symmetry broken by ka, kb
-    (dict(rho=0.75, F=-10.0), None, ['kc=5%']),
+    ({'rho': 0.75, 'F': -10.0}, None, ['kc=5%']),
     # unloaded: mirror symmetric, branch points at |L1 - L2| / 2 and (L1 + L2) / 2
-    (dict(rho=0.5, L2=1.3), None, ['L2=0.02']),
+    ({'rho': 0.5, 'L2': 1.3}, None, ['L2=0.02']),
 ]
 
 PATH_CASES = [
-    (dict(rho=0.5, F=5.0), [dict(rho=0.1)], (-1.0, -1.0), ['L2=normal:0.001']),
-    (dict(rho=0.5, F=5.0), [dict(rho=0.1), dict(rho=0.5)], (-1.0, -1.0),
+    ({'rho': 0.5, 'F': 5.0}, [{'rho': 0.1}], (-1.0, -1.0), ['L2=normal:0.001']),
+    ({'rho': 0.5, 'F': 5.0}, [{'rho': 0.1}, {'rho': 0.5}], (-1.0, -1.0),
      ['L2=normal:0.02', 'k=5%']),
-    (dict(rho=0.5, F=5.0), [dict(rho=1.2), dict(rho=0.5), dict(rho=0.12)], (-1.0, -1.0),
+    ({'rho': 0.5, 'F': 5.0}, [{'rho': 1.2}, {'rho': 0.5}, {'rho': 0.12}], (-1.0, -1.0),
      ['L2=0.02', 'F4=0.3']),
-    (dict(rho=0.6), [dict(F=-40.0)], None, ['L2=0.01', 'k=5%', 'F3=0.1']),
-    (dict(rho=0.7, F3=2.0, F4=-1.0), [dict(rho=0.2, F3=8.0), dict(rho=1.4, F4=-6.0)], None,
-     ['L1=0.02', 'k=5%', 'F3=0.5']),
-    (dict(rho=0.5, F=5.0, m1=0.1, m2=0.1, F4x=0.3), [dict(rho=0.12, F4x=-0.3)], (-1.0, -1.0),
-     ['m2=0.05', 'L2=0.01']),
+    ({'rho': 0.6}, [{'F': -40.0}], None, ['L2=0.01', 'k=5%', 'F3=0.1']),
+    ({'rho': 0.7, 'F3': 2.0, 'F4': -1.0}, [{'rho': 0.2, 'F3': 8.0}, {'rho': 1.4, 'F4': -6.0}],
+     None, ['L1=0.02', 'k=5%', 'F3=0.5']),
+    ({'rho': 0.5, 'F': 5.0, 'm1': 0.1, 'm2': 0.1, 'F4x': 0.3}, [{'rho': 0.12, 'F4x': -0.3}],
+     (-1.0, -1.0), ['m2=0.05', 'L2=0.01']),
     # ends near C1: some samples jump, some do not
-    (dict(rho=0.5, F=5.0), [dict(rho=0.157)], (-1.0, -1.0), ['L2=normal:0.001']),
+    ({'rho': 0.5, 'F': 5.0}, [{'rho': 0.157}], (-1.0, -1.0), ['L2=normal:0.001']),
     # exactly symmetric path (L1 = L2, F3 = F4 throughout): the scalar path
-    (dict(rho=0.5, F=5.0), [dict(rho=0.1)], (-1.0, -1.0), ['kc=1%']),
+    ({'rho': 0.5, 'F': 5.0}, [{'rho': 0.1}], (-1.0, -1.0), ['kc=1%']),
 ]
 
 
@@ -85,28 +85,28 @@ def test_planned_path_equals_track_module_sample_by_sample(values, legs, guess, 
 
 
 @pytest.mark.parametrize('values, tols', [
-    (dict(rho=0.6), ['L2=0.01', 'k=5%', 'F3=0.1']),                 # fold of the upright module
-    (dict(rho=0.6, F=0.5), ['kc=5%']),                               # symmetric: scalar
+    ({'rho': 0.6}, ['L2=0.01', 'k=5%', 'F3=0.1']),                 # fold of the upright module
+    ({'rho': 0.6, 'F': 0.5}, ['kc=5%']),                               # symmetric: scalar
 ])
 def test_a_modules_head_load_equals_track_module(values, tols):
-    batch, exact, w = sampled('head-load', values, [dict(F=-40.0)], None, tols, 24)
+    batch, exact, w = sampled('head-load', values, [{'F': -40.0}], None, tols, 24)
     assert_same(batch.evaluate(w), exact.evaluate(w), 1e-8)
 
 
 @pytest.mark.parametrize('kind, values, legs, guess, tols, scalar', [
-    ('range', dict(rho=0.5, F=5.0), (), (-1.0, -1.0), ['k=5%', 'L2=0.001'], 0),
-    ('path', dict(rho=0.5, F=5.0), [dict(rho=0.157)], (-1.0, -1.0), ['L2=normal:0.001'], 0),
-    ('range', dict(rho=0.75, F=-10.0), (), None, ['kc=5%'], 64),        # exact symmetry
-    ('range', dict(rho=0.5, L2=1.3), (), None, ['L2=0.02'], 64),        # unloaded
+    ('range', {'rho': 0.5, 'F': 5.0}, (), (-1.0, -1.0), ['k=5%', 'L2=0.001'], 0),
+    ('path', {'rho': 0.5, 'F': 5.0}, [{'rho': 0.157}], (-1.0, -1.0), ['L2=normal:0.001'], 0),
+    ('range', {'rho': 0.75, 'F': -10.0}, (), None, ['kc=5%'], 64),        # exact symmetry
+    ('range', {'rho': 0.5, 'L2': 1.3}, (), None, ['L2=0.02'], 64),        # unloaded
 ])
-def test_generic_samples_are_vectorised_and_symmetric_ones_scalar(kind, values, legs, guess,
-                                                                   tols, scalar):
+def test_generic_samples_vectorised_and_symmetric_ones_scalar(kind, values, legs, guess, tols,
+                                                              scalar):
     batch, _, w = sampled(kind, values, legs, guess, tols, 64)
     assert batch.evaluate(w)['scalar'].sum() == scalar
 
 
 def test_some_samples_jump_near_c1_and_some_do_not():
-    batch, _, w = sampled('path', dict(rho=0.5, F=5.0), [dict(rho=0.157)], (-1.0, -1.0),
+    batch, _, w = sampled('path', {'rho': 0.5, 'F': 5.0}, [{'rho': 0.157}], (-1.0, -1.0),
                           ['L2=normal:0.001'], 256)
     jumped = batch.evaluate(w)['jumped']
     assert 0.2 < jumped.mean() < 0.8
@@ -115,21 +115,21 @@ def test_some_samples_jump_near_c1_and_some_do_not():
 def test_random_designs_agree():
     rng = np.random.default_rng(11)
     for trial in range(4):
-        values = dict(rho=float(rng.uniform(0.2, 1.5)), L2=float(rng.uniform(0.6, 1.4)),
-                      F3=float(rng.uniform(-12, 12)), F4=float(rng.uniform(-12, 12)))
+        values = {'rho': float(rng.uniform(0.2, 1.5)), 'L2': float(rng.uniform(0.6, 1.4)),
+                  'F3': float(rng.uniform(-12, 12)), 'F4': float(rng.uniform(-12, 12))}
         guess = tuple(rng.uniform(-2, 2, 2)) if trial % 2 else None
         batch, exact, w = sampled('range', values, (), guess, ['k=5%', 'L2=0.01', 'F3=0.3'],
                                   48, seed=trial)
         assert_same(batch.evaluate(w), exact.evaluate(w), 1e-10)
-        legs = [dict(rho=float(rng.uniform(0.1, 1.8)), F4=float(rng.uniform(-12, 12)))]
+        legs = [{'rho': float(rng.uniform(0.1, 1.8)), 'F4': float(rng.uniform(-12, 12))}]
         batch, exact, w = sampled('path', values, legs, guess, ['k=5%', 'L1=0.01'], 24,
                                   seed=trial)
         assert_same(batch.evaluate(w), exact.evaluate(w), 1e-8)
 
 
 @pytest.mark.parametrize('kind, values, legs, guess', [
-    ('range', dict(rho=0.5, F=5.0), (), (-1.0, -1.0)),
-    ('path', dict(rho=0.5, F=5.0), [dict(rho=0.157), dict(rho=1.2)], (-1.0, -1.0)),
+    ('range', {'rho': 0.5, 'F': 5.0}, (), (-1.0, -1.0)),
+    ('path', {'rho': 0.5, 'F': 5.0}, [{'rho': 0.157}, {'rho': 1.2}], (-1.0, -1.0)),
 ])
 def test_a_samples_answer_does_not_depend_on_its_chunk(kind, values, legs, guess):
     batch, _, w = sampled(kind, values, legs, guess, ['k=5%', 'L2=normal:0.001'], 200)

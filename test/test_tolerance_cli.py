@@ -139,6 +139,6 @@ def test_a_progress_bar_counts_the_samples():
     from tensegrity_ros.tolerance import module_design, tolerance_study
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
-        tolerance_study(module_design(dict(rho=0.5, F=5.0)), 'range', ['k=5%'], samples=2048,
+        tolerance_study(module_design({'rho': 0.5, 'F': 5.0}), 'range', ['k=5%'], samples=2048,
                         chunk=512, processes=1, progress=True)
     assert '2048/2048' in err.getvalue() and 'samples/s' in err.getvalue()

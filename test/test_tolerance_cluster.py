@@ -12,11 +12,11 @@ TENSEGRITY_SLOW_TESTS=1 (``-m slow`` selects them).
 """
 import json
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import cloudpickle
 import numpy as np
@@ -93,9 +93,9 @@ def same(a, b):
 
 def test_same_answer_in_process_on_a_local_cluster_and_on_a_remote_scheduler(remote_scheduler):
     studies = [
-        (module_design(dict(rho=0.5, F=5.0), guess=(-1.0, -1.0)), 'range',
+        (module_design({'rho': 0.5, 'F': 5.0}, guess=(-1.0, -1.0)), 'range',
          ['k=5%', 'L2=normal:0.001', 'F3=normal:0.2'], 4096, 512, True),
-        (module_design(dict(rho=0.5, F=5.0), legs=[dict(rho=0.157), dict(rho=1.2)],
+        (module_design({'rho': 0.5, 'F': 5.0}, legs=[{'rho': 0.157}, {'rho': 1.2}],
                        guess=(-1.0, -1.0)), 'path', ['L2=normal:0.001', 'kc=2%'], 1024, 256,
          False),
     ]

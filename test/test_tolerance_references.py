@@ -27,7 +27,7 @@ Q = (0.01, 0.05, 0.5, 0.95, 0.99)
 
 def test_unloaded_range_edges_and_their_quantiles_are_the_closed_form():
     n, mu, sigma = 512, 1.3, 0.02
-    design = module_design(dict(rho=0.5, L2=mu))
+    design = module_design({'rho': 0.5, 'L2': mu})
     result = tolerance_study(design, 'range', [f'L2=normal:{sigma}'], samples=n, processes=1)
     L2 = result.inputs[:, 0]
     f = result.figures
@@ -70,7 +70,7 @@ def test_the_unloaded_branch_ends_where_it_merges_not_at_rho_0():
 
 
 def test_worst_range_samples_replayed_by_tensegrity_range():
-    design = module_design(dict(rho=0.5, F=5.0), guess=(-1.0, -1.0))
+    design = module_design({'rho': 0.5, 'F': 5.0}, guess=(-1.0, -1.0))
     result = tolerance_study(design, 'range', ['k=5%', 'L2=0.001', 'F3=normal:0.2'],
                              samples=256, processes=1, worst=3)
     for w in result.summary()['worst']:
@@ -85,7 +85,7 @@ def test_worst_range_samples_replayed_by_tensegrity_range():
 
 
 def test_worst_path_samples_replayed_by_tensegrity_track_leg_by_leg():
-    design = module_design(dict(rho=0.5, F=5.0), legs=[dict(rho=0.157), dict(rho=1.2)],
+    design = module_design({'rho': 0.5, 'F': 5.0}, legs=[{'rho': 0.157}, {'rho': 1.2}],
                            guess=(-1.0, -1.0))
     result = tolerance_study(design, 'path', ['L2=normal:0.001', 'kc=2%'], samples=64,
                              processes=1, worst=2)
@@ -109,7 +109,7 @@ def test_worst_path_samples_replayed_by_tensegrity_track_leg_by_leg():
 
 
 def test_worst_neck_sample_replayed_from_its_parameter_file(tmp_path):
-    design = neck_design('config/neck.yaml', legs=[dict(F=-9.0)])
+    design = neck_design('config/neck.yaml', legs=[{'F': -9.0}])
     result = tolerance_study(design, 'head-load', ['k=3%', 'L1=0.0005'], samples=4,
                              processes=1, worst=1)
     w = result.summary()['worst'][0]
@@ -171,7 +171,7 @@ def test_jump_probability_near_c1_equals_a_direct_loop_over_the_samples():
     """rho 0.5 -> 0.157 from the lower branch of fig. 8a, L2 = 1 + N(0, 0.001): C1 (a
     pitchfork at L2 = 1) is a fold at ~0.155..0.161 for L2 != 1, so some samples jump."""
     end = 0.157
-    design = module_design(dict(rho=0.5, F=5.0), legs=[dict(rho=end)], guess=(-1.0, -1.0))
+    design = module_design({'rho': 0.5, 'F': 5.0}, legs=[{'rho': end}], guess=(-1.0, -1.0))
     result = tolerance_study(design, 'path', ['L2=normal:0.001'], samples=512, processes=1,
                              sampler='mc', seed=3)
     L2 = result.inputs[:, 0]

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from tensegrity_ros.core.tolerance_sampling import (Tolerance, parse_spread, sample_waypoints,
+from tensegrity_ros.core.tolerance_sampling import (parse_spread, sample_waypoints, Tolerance,
                                                     unit_samples)
 from tensegrity_ros.core.tolerance_statistics import (noise_level, proportion_interval,
                                                       quantiles, rank_correlations)

@@ -322,8 +322,8 @@ def follow(fam, idx, t1, t2, s0, sigma, bound, scale_len, relative_s, stop_at_bo
         if np.any(close):
             _, _, h11, h12, h22, _, _ = gradient_hessian(_take(cn, close), n1[close], n2[close])
             lam_new = eigenvalues_2x2(h11, h12, h22)[0]
-            good[close] = (lam_new > 0.0) | (to_bound[go][close]
-                                              & (lam_new > -1e-12 * scale_h[go][close]))
+            near_bound = to_bound[go][close] & (lam_new > -1e-12 * scale_h[go][close])
+            good[close] = (lam_new > 0.0) | near_bound
         bad_rows, good_rows = g_idx[~good], g_idx[good]
         first_fail[bad_rows] = np.minimum(first_fail[bad_rows], st[~good])
         shrink[bad_rows] *= 0.25
@@ -441,8 +441,8 @@ def settle_start(rows, g, guess):
         decided[one] = True
     two = np.nonzero(count == 2)[0]
     if two.size:
-        c = PathFamily(rows[two], np.zeros_like(rows[two]), g).at(np.arange(two.size),
-                                                              np.zeros(two.size))
+        family = PathFamily(rows[two], np.zeros_like(rows[two]), g)
+        c = family.at(np.arange(two.size), np.zeros(two.size))
         mins = theta[two][stable[two].nonzero()].reshape(two.size, 2, 2)
         radius = _convex_radius(c, mins)
         clear = np.ones(two.size, bool)

@@ -21,20 +21,20 @@ functions for all (the reference the vectorised path is tested against).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import functools
 import hashlib
 import math
 import pathlib
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
 from . import branch_batch as bb
+from .classification import DEGENERACY_TOL
 from .module import InvalidParameterError, ModuleParams, PARAMETER_NAMES, STANDARD_GRAVITY
 from .operation_range import operation_range
 from .polynomial_solver import equilibria
-from .classification import DEGENERACY_TOL
 from .stack import Stack, track_stack
 from .start_state import start_state
 from .tolerance_sampling import sample_waypoints

@@ -16,10 +16,10 @@ Numbers only (numpy/scipy); which CLI name means which field is the caller's bus
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import math
 import re
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats

@@ -14,8 +14,6 @@ Subcommands::
     tensegrity range   --rho R [--theta1 T1 --theta2 T2] [params] [--json]
     tensegrity limit   --L2 X [--pushing] [--json]
     tensegrity snap    --rho R0 --to-rho R1 --rate V --damping C --m1 M --m2 M [...]  (dynamics)
-    tensegrity tolerance range|path|head-load [design] --tol NAME=SPREAD ... --samples N
-                       [--processes P | --scheduler ADDR] [--json F] [--csv F] [--plot PREFIX]
 
 Units are SI (m, N, N/m, kg); angles are radians on input and in JSON/CSV, the
 human-readable tables show degrees.  The paper's F3, F4 are the vertical force
@@ -153,7 +151,6 @@ def build_parser():
                     'SI units; angles in radians (tables show degrees).',
         epilog='Run "tensegrity COMMAND --help" for the options of a command.')
     sub = parser.add_subparsers(dest='command', metavar='COMMAND', required=True)
-
     p = sub.add_parser(
         'solve', help='every equilibrium at one parameter point (one module or a stack)',
         description='Print every equilibrium (at most 6) with its stability. With --modules, '
@@ -275,8 +272,7 @@ def build_parser():
 
     snap_command.add_snap_parser(sub, _add_parameter_options, finite_float).set_defaults(
         func=cmd_snap)
-    tolerance_command.add_tolerance_parser(sub, _add_parameter_options, finite_float,
-                                           positive_int).set_defaults(func=cmd_tolerance)
+    tolerance_command.add_parser(sub, _add_parameter_options, _values, finite_float, positive_int)
     return parser
 
 
@@ -1029,16 +1025,6 @@ def cmd_snap(args, out):
     start = make_params(_values(args))
     return snap_command.run_snap(args, out, start,
                                  start_equilibrium(start, _start_guess(args)).theta)
-
-
-def cmd_tolerance(args, out):
-    """``tolerance``: the design as the other commands parse it; the rest in
-    tolerance_command."""
-    from .tolerance import ToleranceError
-    try:
-        return tolerance_command.run_tolerance(args, out, _values(args), finite_float)
-    except ToleranceError as exc:
-        raise UsageError(str(exc)) from None
 
 
 # ---------------------------------------------------------------------------

@@ -31,7 +31,7 @@ import os
 
 import numpy as np
 
-from .core.module import PARAMETER_NAMES, STANDARD_GRAVITY
+from .core.module import InvalidParameterError, PARAMETER_NAMES, STANDARD_GRAVITY
 from .core.tolerance_questions import (code_fingerprint, evaluate_chunk, HeadLoad,
                                        KIND_NAMES, OperatingRange, PlannedPath, STATUS_NAMES)
 from .core.tolerance_sampling import (parse_spread, sample_waypoints, SAMPLERS, Tolerance,
@@ -56,8 +56,9 @@ CODE_FIGURES = ('lower_kind', 'upper_kind', 'jump_kind', 'collapse_kind', 'statu
                 'num_stable', 'jump_leg', 'jumps', 'scalar')
 
 
-class ToleranceError(ValueError):
-    """A study that cannot be set up (bad tolerance, design, or question): the reason."""
+class ToleranceError(InvalidParameterError):
+    """A study that cannot be set up (bad tolerance, design, or question): the reason.
+    (An InvalidParameterError, which the command line reports as a usage error.)"""
 
 
 # ---------------------------------------------------------------------------

@@ -30,8 +30,10 @@ _HELP = {
 }
 
 
-def add_tolerance_parser(sub, add_parameter_options, finite_float, positive_int):
-    """Register ``tolerance`` and its questions on the CLI's subparsers."""
+def add_parser(sub, add_parameter_options, values_of, finite_float, positive_int):
+    """Register ``tolerance`` and its questions on the CLI's subparsers: the design's
+    options as the other commands take them (``add_parameter_options``; ``values_of(args)``
+    reads them back, checked), and :func:`run_tolerance` as the command."""
     p = sub.add_parser(
         'tolerance', help='design under tolerances: sample a toleranced module or neck',
         description='Sample a design whose parameters scatter by the given tolerances '
@@ -46,6 +48,8 @@ def add_tolerance_parser(sub, add_parameter_options, finite_float, positive_int)
         q = questions.add_parser(name, help=_HELP[name], description=_HELP[name])
         add_parameter_options(q)
         _add_common(q, finite_float, positive_int, name)
+        q.set_defaults(func=lambda args, out: run_tolerance(args, out, values_of(args),
+                                                            finite_float))
     return p
 
 

@@ -253,87 +253,111 @@ def follow(fam, idx, t1, t2, s0, sigma, bound, scale_len, relative_s, stop_at_bo
     Returns (s_end, t1_end, t2_end, kind, delicate): kind FOLD (the branch ends at a
     fold: the critical configuration) or LIMIT (the bound reached, still stable);
     ``delicate`` rows need the scalar path (their other outputs are meaningless)."""
-    m = len(idx)
-    s = s0.astype(float).copy()
-    t1, t2 = t1.astype(float).copy(), t2.astype(float).copy()
-    shrink = np.ones(m)
-    first_fail = np.full(m, np.inf)
-    tried = np.zeros(m, bool)
-    end_s, end_t1, end_t2 = np.full(m, np.nan), np.full(m, np.nan), np.full(m, np.nan)
-    kind = np.full(m, -1)
-    delicate = np.zeros(m, bool)
-    active = np.arange(m)
-    hmax = 0.1 * scale_len
-    for _ in range(MAX_STEPS):
-        if active.size == 0:
-            break
-        rows = idx[active]
-        sa, a1, a2, sg, bd = s[active], t1[active], t2[active], sigma[active], bound[active]
-        c = fam.at(rows, sa)
+    return _Follower(fam, idx, t1, t2, s0, sigma, bound, scale_len, relative_s,
+                     stop_at_bound_exactly).run()
+
+
+class _Follower:
+    """:func:`follow`'s rows: their points on the branch, step control and ends."""
+
+    def __init__(self, fam, idx, t1, t2, s0, sigma, bound, scale_len, relative_s,
+                 exact_bound):
+        m = len(idx)
+        self.fam, self.idx, self.sigma, self.bound = fam, idx, sigma, bound
+        self.scale_len, self.relative_s, self.exact_bound = scale_len, relative_s, exact_bound
+        self.s = s0.astype(float).copy()
+        self.t1, self.t2 = t1.astype(float).copy(), t2.astype(float).copy()
+        self.shrink = np.ones(m)
+        self.first_fail = np.full(m, np.inf)
+        self.tried = np.zeros(m, bool)
+        self.end_s, self.end_t1, self.end_t2 = (np.full(m, np.nan) for _ in range(3))
+        self.kind = np.full(m, -1)
+        self.delicate = np.zeros(m, bool)
+
+    def run(self):
+        active = np.arange(len(self.idx))
+        for _ in range(MAX_STEPS):
+            if active.size == 0:
+                break
+            active = active[~self.step(active)]
+        self.delicate[active] = True
+        return self.end_s, self.end_t1, self.end_t2, self.kind, self.delicate
+
+    def step(self, active):
+        """One predictor-corrector step of rows ``active``; which of them finished."""
+        sa, a1, a2 = self.s[active], self.t1[active], self.t2[active]
+        sg, bd = self.sigma[active], self.bound[active]
+        c = self.fam.at(self.idx[active], sa)
         lo, hi, dt1, dt2, dlam = _branch_state(c, a1, a2)
         rate = sg * dlam
         with np.errstate(divide='ignore', invalid='ignore'):
             est = np.where(rate < 0, lo / -rate, np.inf)
         remaining = sg * (bd - sa)
         scale_h = _hessian_scale(c)
-        done = np.zeros(active.size, bool)
-        # at the bound (a degeneracy closer to it than BOUND_TOL counts as the bound)
-        at_bound = remaining <= BOUND_TOL * scale_len[active]
-        if np.any(at_bound):
-            k = active[at_bound]
-            end_s[k], end_t1[k], end_t2[k], kind[k] = bound[k], t1[k], t2[k], LIMIT
-            done |= at_bound
-        near = ~done & ~tried[active] & ((est < 0.05 * scale_len[active]) | (lo < 1e-3 * scale_h))
-        if np.any(near):
-            tried[active[near]] = True
-            found, r, e1, e2 = _localise(fam, rows[near], a1[near], a2[near], sa[near],
-                                         sg[near], est[near], dt1[near], dt2[near],
-                                         relative_s)
-            inside = found & (sg[near] * (bd[near] - r) >= 0)
-            k = active[near][inside]
-            end_s[k], end_t1[k], end_t2[k], kind[k] = r[inside], e1[inside], e2[inside], FOLD
-            done[np.nonzero(near)[0][inside]] = True
+        done = self.ends(active, remaining, est, lo, scale_h, dt1, dt2)
         speed = np.hypot(dt1, dt2)
         lam_room = np.where(est < remaining * (1.0 - 1e-9), 0.5 * est, np.inf)
         with np.errstate(divide='ignore'):
-            step = np.minimum(np.minimum(hmax[active], lam_room),
-                              0.15 / np.maximum(speed, 1e-300)) * shrink[active]
-        to_bound = step >= remaining
-        step = np.where(to_bound, remaining, step)
-        stuck = ~done & (shrink[active] < 1e-3) & np.isfinite(first_fail[active])
-        delicate[active[stuck]] = True
+            h = np.minimum(np.minimum(0.1 * self.scale_len[active], lam_room),
+                           0.15 / np.maximum(speed, 1e-300)) * self.shrink[active]
+        to_bound = h >= remaining
+        h = np.where(to_bound, remaining, h)
+        stuck = ~done & (self.shrink[active] < 1e-3) & np.isfinite(self.first_fail[active])
+        self.delicate[active[stuck]] = True
         done |= stuck
         go = ~done
-        if not np.any(go):
-            active = active[~done]
-            continue
-        g_idx = active[go]
-        st = step[go]
-        s_new = sa[go] + sg[go] * st
-        if stop_at_bound_exactly:
-            s_new = np.where(to_bound[go], bd[go], s_new)
-        p1 = a1[go] + sg[go] * st * dt1[go]
-        p2 = a2[go] + sg[go] * st * dt2[go]
-        cn = fam.at(rows[go], s_new)
+        if np.any(go):
+            self.correct(active[go], h[go], to_bound[go], dt1[go], dt2[go], speed[go],
+                         scale_h[go])
+        return done
+
+    def ends(self, active, remaining, est, lo, scale_h, dt1, dt2):
+        """Rows at their bound (LIMIT) or with a validated fold ahead (FOLD)."""
+        done = remaining <= BOUND_TOL * self.scale_len[active]     # a degeneracy this
+        k = active[done]                                             # close: the bound
+        self.end_s[k], self.end_t1[k], self.end_t2[k] = self.bound[k], self.t1[k], self.t2[k]
+        self.kind[k] = LIMIT
+        close_to_end = (est < 0.05 * self.scale_len[active]) | (lo < 1e-3 * scale_h)
+        near = ~done & ~self.tried[active] & close_to_end
+        if np.any(near):
+            k = active[near]
+            self.tried[k] = True
+            found, r, e1, e2 = _localise(self.fam, self.idx[k], self.t1[k], self.t2[k],
+                                         self.s[k], self.sigma[k], est[near], dt1[near],
+                                         dt2[near], self.relative_s)
+            inside = found & (self.sigma[k] * (self.bound[k] - r) >= 0)
+            k = k[inside]
+            self.end_s[k], self.end_t1[k], self.end_t2[k] = r[inside], e1[inside], e2[inside]
+            self.kind[k] = FOLD
+            done[np.nonzero(near)[0][inside]] = True
+        return done
+
+    def correct(self, rows, h, to_bound, dt1, dt2, speed, scale_h):
+        """Predict a step ``h`` along the tangent, correct by Newton, keep it where it
+        converged near the prediction onto a stable state; else shrink the step."""
+        sg = self.sigma[rows]
+        s_new = self.s[rows] + sg * h
+        if self.exact_bound:
+            s_new = np.where(to_bound, self.bound[rows], s_new)
+        p1 = self.t1[rows] + sg * h * dt1
+        p2 = self.t2[rows] + sg * h * dt2
+        cn = self.fam.at(self.idx[rows], s_new)
         n1, n2, ok = newton(cn, p1, p2)
-        close = ok & (np.abs(_wrap(n1 - p1)) <= 0.05 + 0.5 * st * speed[go]) \
-            & (np.abs(_wrap(n2 - p2)) <= 0.05 + 0.5 * st * speed[go])
-        good = close.copy()
-        if np.any(close):
+        good = ok & (np.abs(_wrap(n1 - p1)) <= 0.05 + 0.5 * h * speed) \
+            & (np.abs(_wrap(n2 - p2)) <= 0.05 + 0.5 * h * speed)
+        if np.any(good):
+            close = good.copy()
             _, _, h11, h12, h22, _, _ = gradient_hessian(_take(cn, close), n1[close], n2[close])
             lam_new = eigenvalues_2x2(h11, h12, h22)[0]
-            near_bound = to_bound[go][close] & (lam_new > -1e-12 * scale_h[go][close])
+            near_bound = to_bound[close] & (lam_new > -1e-12 * scale_h[close])
             good[close] = (lam_new > 0.0) | near_bound
-        bad_rows, good_rows = g_idx[~good], g_idx[good]
-        first_fail[bad_rows] = np.minimum(first_fail[bad_rows], st[~good])
-        shrink[bad_rows] *= 0.25
-        shrink[good_rows] = np.minimum(1.0, 2.0 * shrink[good_rows])
-        first_fail[good_rows] = np.inf
-        tried[good_rows] = False
-        s[good_rows], t1[good_rows], t2[good_rows] = s_new[good], n1[good], n2[good]
-        active = active[~done]
-    delicate[active] = True
-    return end_s, end_t1, end_t2, kind, delicate
+        bad, kept = rows[~good], rows[good]
+        self.first_fail[bad] = np.minimum(self.first_fail[bad], h[~good])
+        self.shrink[bad] *= 0.25
+        self.shrink[kept] = np.minimum(1.0, 2.0 * self.shrink[kept])
+        self.first_fail[kept] = np.inf
+        self.tried[kept] = False
+        self.s[kept], self.t1[kept], self.t2[kept] = s_new[good], n1[good], n2[good]
 
 
 def _hessian_scale(c):

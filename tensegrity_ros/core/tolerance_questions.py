@@ -30,8 +30,7 @@ import time
 
 import numpy as np
 
-from . import branch_batch as bb
-from .classification import DEGENERACY_TOL
+from . import branch_batch as bb, tolerance_batch as tb
 from .module import InvalidParameterError, ModuleParams, PARAMETER_NAMES, STANDARD_GRAVITY
 from .operation_range import operation_range
 from .polynomial_solver import equilibria
@@ -67,55 +66,6 @@ def _path_s(start, end, p):
 
 def _empty(names, m):
     return {name: np.full(m, math.nan) for name in names}
-
-
-def _valid_rows(rows):
-    """Rows inside ModuleParams' domain (the others go to the scalar path, which says why)."""
-    from .module import MAX_MAGNITUDE, MIN_MAGNITUDE
-    finite = np.all(np.isfinite(rows), axis=1) & np.all(np.abs(rows) <= MAX_MAGNITUDE, axis=1)
-    positive = np.all(rows[:, :6] >= MIN_MAGNITUDE, axis=1)
-    masses = np.all(rows[:, 10:12] >= 0.0, axis=1)
-    return finite & positive & masses
-
-
-def _start(rows, g, guess):
-    """(t1, t2, decided, number of stable equilibria) of the start of each row: the
-    upper stable equilibrium, or where the mechanism settles from ``guess``."""
-    if guess is None:
-        t1, t2, count = bb.upper_start(rows, g)
-        return t1, t2, count > 0, count
-    return bb.settle_start(rows, g, guess)
-
-
-def _landings(fam, rows, s, t1, t2, g):
-    """Where a module jumping off the fold (t1, t2) at ``s`` of rows ``rows`` of ``fam``
-    lands: the one stable equilibrium there other than the fold itself (a module has at
-    most two stable equilibria).  It is found past the fold (s + 0.01 on the straight
-    path, beyond the leg's end if need be: the fold's pair of equilibria has gone there
-    and the batch solver sees a generic point), then polished at s by Newton and checked
-    stable and away from the fold.  (t1, t2, unique): the rows where that fails (no
-    single candidate, parameters past the fold outside the domain, a landing minimum that
-    exists only past the jump) go to the scalar tracker."""
-    params = fam.p0[rows] + (s + 0.01)[:, None] * fam.dp[rows]
-    valid = _valid_rows(params)
-    params[~valid] = fam.p0[rows][~valid]               # (answered by the scalar path)
-    theta, stable, _ = bb.stable_equilibria(params, g)
-    far = np.max(np.abs(_wrap(theta - np.stack([t1, t2], -1)[:, None, :])), axis=-1) > 1e-3
-    other = stable & far
-    unique = (other.sum(axis=1) == 1) & valid
-    slot = np.argmax(other, axis=1)
-    pick = np.arange(len(rows))
-    l1, l2, ok = bb.newton(fam.at(rows, s), theta[pick, slot, 0], theta[pick, slot, 1])
-    away = np.maximum(np.abs(_wrap(l1 - t1)), np.abs(_wrap(l2 - t2))) > 1e-3
-    stable_here = _stable_at(fam, rows, s, l1, l2)
-    return l1, l2, unique & ok & away & stable_here
-
-
-def _stable_at(fam, idx, s, t1, t2):
-    """lambda_min > DEGENERACY_TOL |lambda_max| (operation_range's start test)."""
-    _, _, h11, h12, h22, _, _ = bb.gradient_hessian(fam.at(idx, s), t1, t2)
-    lo, hi = bb.eigenvalues_2x2(h11, h12, h22)
-    return lo > DEGENERACY_TOL * np.abs(hi)
 
 
 @dataclass(frozen=True)
@@ -159,69 +109,63 @@ class OperatingRange:
 
     def _evaluate_batch(self, rows, g):
         """Generic rows vectorised (:mod:`.branch_batch`), delicate ones by evaluate_one."""
-        m = len(rows)
-        out = _empty(self.FIGURES, m)
+        out = _empty(self.FIGURES, len(rows))
         e_rho = np.zeros_like(rows)
         e_rho[:, 0] = 1.0
-        scalar = ~_valid_rows(rows) | bb.symmetric_rows(rows, e_rho, g)
+        scalar = ~tb.valid_rows(rows) | bb.symmetric_rows(rows, e_rho, g)
         gen = np.nonzero(~scalar)[0]
-        t1, t2, decided, count = _start(rows[gen], g, self.guess)
         base = rows[gen].copy()
-        base[:, 0] = 0.0
+        base[:, 0] = 0.0                        # the path rho = s, everything else fixed
         fam = bb.PathFamily(base, e_rho[gen], g)
-        rho = rows[gen, 0]
-        local = np.arange(len(gen))
-        p1, p2, ok = bb.newton(fam.at(local, rho), t1, t2)
-        stable = _stable_at(fam, local, rho, p1, p2)
-        good = decided & ok & stable
+        t1, t2, count, good = tb.polished_start(fam, rows[gen], rows[gen, 0], g, self.guess)
         scalar[gen[~good]] = True
-        gen, p1, p2, rho, count = gen[good], p1[good], p2[good], rho[good], count[good]
-        base = base[good]
-        fam = bb.PathFamily(base, e_rho[gen], g)
-        L = rows[gen, 1] + rows[gen, 2]
-        lo_b = np.zeros(len(gen)) if self.rho_bounds is None else \
-            np.full(len(gen), float(self.rho_bounds[0]))
-        hi_b = 2.0 * L if self.rho_bounds is None else np.full(len(gen), float(self.rho_bounds[1]))
-        n = len(gen)
-        both = np.concatenate([np.arange(n), np.arange(n)])
-        sigma = np.concatenate([-np.ones(n), np.ones(n)])
-        t1w, t2w = _wrap(p1), _wrap(p2)
-        end_s, e1, e2, kind, delicate = bb.follow(
-            fam, both, np.concatenate([t1w, t1w]), np.concatenate([t2w, t2w]),
-            np.concatenate([rho, rho]), sigma, np.concatenate([lo_b, hi_b]),
-            np.concatenate([L, L]), True, False)
-        fold = kind == bb.FOLD
-        if np.any(fold):
-            k = np.nonzero(fold)[0]
-            branch = bb.fold_is_branch_point(fam, both[k], e1[k], e2[k], end_s[k])
-            delicate[k[branch]] = True
-        bad = delicate[:n] | delicate[n:]
-        keep = ~bad
-        scalar[gen[bad]] = True
-        rows_ok = gen[keep]
-        lower, upper = end_s[:n][keep], end_s[n:][keep]
-        out['status'][rows_ok] = OK
-        out['scalar'][rows_ok] = 0.0
-        out['rho_min'][rows_ok], out['rho_max'][rows_ok] = lower, upper
-        out['width'][rows_ok] = upper - lower
-        out['margin_below'][rows_ok] = rho[keep] - lower
-        out['margin_above'][rows_ok] = upper - rho[keep]
-        out['lower_kind'][rows_ok] = kind[:n][keep]
-        out['upper_kind'][rows_ok] = kind[n:][keep]
-        out['jumps_below'][rows_ok] = (kind[:n][keep] == bb.FOLD).astype(float)
-        out['jumps_above'][rows_ok] = (kind[n:][keep] == bb.FOLD).astype(float)
-        out['start_theta1'][rows_ok], out['start_theta2'][rows_ok] = t1w[keep], t2w[keep]
-        if self.at_rho is None:
-            counts = count[keep]
-        else:
-            at = rows[rows_ok].copy()
-            at[:, 0] = self.at_rho
-            counts = bb.stable_equilibria(at, g)[1].sum(axis=1)
-        out['num_stable'][rows_ok] = counts
-        out['bistable'][rows_ok] = (counts == 2).astype(float)
+        idx = np.nonzero(good)[0]
+        ends = self._ends(fam, idx, rows[gen[idx]], _wrap(t1[idx]), _wrap(t2[idx]))
+        ok = ends[-1]
+        scalar[gen[idx[~ok]]] = True
+        self._fill(out, rows, gen[idx[ok]], [e[ok] for e in ends[:-1]],
+                   _wrap(t1[idx[ok]]), _wrap(t2[idx[ok]]), count[idx[ok]], g)
         for i in np.nonzero(scalar)[0]:
             self.evaluate_one(rows[i], g, out, i)
         return out
+
+    def _ends(self, fam, idx, rows, t1, t2):
+        """Both ends of each row's branch: (rho_min, rho_max, lower kind, upper kind, ok);
+        not ok where the follower found the row delicate or an end is a branch point."""
+        n = len(idx)
+        L = rows[:, 1] + rows[:, 2]
+        if self.rho_bounds is None:
+            lo_b, hi_b = np.zeros(n), 2.0 * L
+        else:
+            lo_b, hi_b = (np.full(n, float(b)) for b in self.rho_bounds)
+        both = np.concatenate([idx, idx])
+        end_s, e1, e2, kind, delicate = bb.follow(
+            fam, both, np.concatenate([t1, t1]), np.concatenate([t2, t2]),
+            np.concatenate([rows[:, 0], rows[:, 0]]), np.repeat([-1.0, 1.0], n),
+            np.concatenate([lo_b, hi_b]), np.concatenate([L, L]), True, False)
+        fold = np.nonzero(kind == bb.FOLD)[0]
+        branch = bb.fold_is_branch_point(fam, both[fold], e1[fold], e2[fold], end_s[fold])
+        delicate[fold[branch]] = True
+        return end_s[:n], end_s[n:], kind[:n], kind[n:], ~(delicate[:n] | delicate[n:])
+
+    def _fill(self, out, rows, which, ends, t1, t2, count, g):
+        """The figures of the vectorised rows ``which``."""
+        lower, upper, lower_kind, upper_kind = ends
+        rho = rows[which, 0]
+        out['status'][which], out['scalar'][which] = OK, 0.0
+        out['rho_min'][which], out['rho_max'][which] = lower, upper
+        out['width'][which] = upper - lower
+        out['margin_below'][which], out['margin_above'][which] = rho - lower, upper - rho
+        out['lower_kind'][which], out['upper_kind'][which] = lower_kind, upper_kind
+        out['jumps_below'][which] = (lower_kind == bb.FOLD).astype(float)
+        out['jumps_above'][which] = (upper_kind == bb.FOLD).astype(float)
+        out['start_theta1'][which], out['start_theta2'][which] = t1, t2
+        if self.at_rho is not None:
+            at = rows[which].copy()
+            at[:, 0] = self.at_rho
+            count = bb.stable_equilibria(at, g)[1].sum(axis=1)
+        out['num_stable'][which] = count
+        out['bistable'][which] = (count == 2).astype(float)
 
     def evaluate_one(self, row, g, out, i):
         """The scalar reference for sample ``i`` (``tensegrity range`` and ``solve``)."""
@@ -296,97 +240,47 @@ class PlannedPath:
         return out
 
     def _evaluate_batch(self, waypoints, g):
-        """One module, generic rows vectorised leg by leg (:mod:`.branch_batch`): a fold
-        ends the branch and the module lands on the one other stable equilibrium there;
-        delicate rows (see branch_batch) by evaluate_one."""
+        """One module, generic rows vectorised leg by leg (:class:`.tolerance_batch.
+        ScheduleFollower`: a fold ends the branch, the module lands on the one other
+        stable equilibrium there); delicate rows by evaluate_one."""
         m, k_stops = waypoints.shape[:2]
         out = _empty(self.figures(), m)
         stops = waypoints[:, :, 0, :]
         scalar = np.zeros(m, bool)
         for k in range(k_stops):
-            scalar |= ~_valid_rows(stops[:, k])
+            scalar |= ~tb.valid_rows(stops[:, k])
         for k in range(k_stops - 1):
             scalar |= bb.symmetric_rows(stops[:, k], stops[:, k + 1] - stops[:, k], g)
         gen = np.nonzero(~scalar)[0]
-        guess = None if self.guess is None else self.guess[0]
-        t1, t2, decided, _ = _start(stops[gen, 0], g, guess)
         fam = bb.PathFamily(stops[gen, 0], stops[gen, 1] - stops[gen, 0], g)
-        local = np.arange(len(gen))
-        zero = np.zeros(len(gen))
-        t1, t2, ok = bb.newton(fam.at(local, zero), t1, t2)
-        fine = decided & ok & _stable_at(fam, local, zero, t1, t2)
-        scalar[gen[~fine]] = True
-        gen, t1, t2 = gen[fine], t1[fine], t2[fine]
-        n = len(gen)
-        first = np.full(n, -1)                      # leg of the first jump (-1: none)
-        first_s = np.full(n, np.nan)
-        first_p = np.full((n, len(PARAMETER_NAMES)), np.nan)
-        landing = np.full((n, 2), np.nan)
-        jumps = np.zeros(n, int)
-        failed = np.zeros(n, bool)
-        for leg in range(k_stops - 1):
-            p0 = stops[gen, leg]
-            dp = stops[gen, leg + 1] - p0
-            fam = bb.PathFamily(p0, dp, g)
-            live = np.nonzero(~failed)[0]
-            s0 = np.zeros(live.size)
-            for _ in range(bb.MAX_EVENTS + 1):
-                if live.size == 0:
-                    break
-                end_s, e1, e2, kind, delicate = bb.follow(
-                    fam, live, t1[live], t2[live], s0, np.ones(live.size),
-                    np.ones(live.size), np.ones(live.size), False, True)
-                fold = np.nonzero((kind == bb.FOLD) & ~delicate)[0]
-                if fold.size:
-                    branch = bb.fold_is_branch_point(fam, live[fold], e1[fold], e2[fold],
-                                                     end_s[fold])
-                    delicate[fold[branch]] = True
-                reached = np.nonzero((kind == bb.LIMIT) & ~delicate)[0]
-                if reached.size:            # polished at s = 1 exactly
-                    r = live[reached]
-                    f1, f2, ok = bb.newton(fam.at(r, np.ones(r.size)), e1[reached],
-                                           e2[reached])
-                    t1[r], t2[r] = f1, f2
-                    delicate[reached[~ok]] = True
-                fold = np.nonzero((kind == bb.FOLD) & ~delicate)[0]
-                if fold.size:
-                    r = live[fold]
-                    l1, l2, unique = _landings(fam, r, end_s[fold], e1[fold], e2[fold], g)
-                    delicate[fold[~unique]] = True
-                    fold, r, l1, l2 = fold[unique], r[unique], l1[unique], l2[unique]
-                    new = first[r] < 0
-                    first[r[new]] = leg
-                    first_s[r[new]] = end_s[fold][new]
-                    first_p[r[new]] = p0[r[new]] + end_s[fold][new, None] * dp[r[new]]
-                    landing[r[new], 0], landing[r[new], 1] = _wrap(l1[new]), _wrap(l2[new])
-                    jumps[r] += 1
-                    t1[r], t2[r] = l1, l2
-                failed[live[delicate]] = True
-                again = (kind == bb.FOLD) & ~delicate
-                s0 = end_s[again]
-                live = live[again]
-            failed[live] = True                     # too many events on one leg
-        scalar[gen[failed]] = True
-        rows = gen[~failed]
-        keep = ~failed
-        out['status'][rows] = OK
-        out['scalar'][rows] = 0.0
-        out['jumped'][rows] = (jumps[keep] > 0).astype(float)
-        out['jumps'][rows] = jumps[keep]
-        out['final_theta1'][rows], out['final_theta2'][rows] = _wrap(t1[keep]), _wrap(t2[keep])
-        hit = keep & (first >= 0)
-        rows = gen[hit]
-        out['jump_leg'][rows] = first[hit]
-        out['jump_s'][rows] = first_s[hit]
-        out['jump_s_total'][rows] = first[hit] + first_s[hit]
-        out['jump_kind'][rows] = KIND_CODES['fold']
-        out['jump_rho'][rows] = first_p[hit, 0]
-        out['jump_F3'][rows] = first_p[hit, PARAMETER_NAMES.index('f3y')]
-        out['jump_F4'][rows] = first_p[hit, PARAMETER_NAMES.index('f4y')]
-        out['landing_theta1'][rows], out['landing_theta2'][rows] = landing[hit, 0], landing[hit, 1]
+        guess = None if self.guess is None else self.guess[0]
+        t1, t2, _, good = tb.polished_start(fam, stops[gen, 0], np.zeros(len(gen)), g, guess)
+        scalar[gen[~good]] = True
+        gen = gen[good]
+        run = tb.ScheduleFollower(stops[gen], t1[good], t2[good], g).run()
+        scalar[gen[run.failed]] = True
+        self._fill(out, gen[~run.failed], run, ~run.failed)
         for i in np.nonzero(scalar)[0]:
             self.evaluate_one(waypoints[i], g, out, i)
         return out
+
+    def _fill(self, out, rows, run, keep):
+        """The figures of the vectorised rows ``rows`` (``keep`` of the follower's)."""
+        out['status'][rows], out['scalar'][rows] = OK, 0.0
+        out['jumped'][rows] = (run.jumps[keep] > 0).astype(float)
+        out['jumps'][rows] = run.jumps[keep]
+        out['final_theta1'][rows] = _wrap(run.t1[keep])
+        out['final_theta2'][rows] = _wrap(run.t2[keep])
+        hit = run.first[keep] >= 0
+        rows, keep = rows[hit], np.nonzero(keep)[0][hit]
+        out['jump_leg'][rows], out['jump_s'][rows] = run.first[keep], run.first_s[keep]
+        out['jump_s_total'][rows] = run.first[keep] + run.first_s[keep]
+        out['jump_kind'][rows] = KIND_CODES['fold']
+        out['jump_rho'][rows] = run.first_p[keep, 0]
+        out['jump_F3'][rows] = run.first_p[keep, PARAMETER_NAMES.index('f3y')]
+        out['jump_F4'][rows] = run.first_p[keep, PARAMETER_NAMES.index('f4y')]
+        out['landing_theta1'][rows] = run.landing[keep, 0]
+        out['landing_theta2'][rows] = run.landing[keep, 1]
 
     def evaluate_one(self, sample, g, out, i):
         """The scalar reference for sample ``i`` (``tensegrity track``, leg by leg)."""

@@ -36,8 +36,8 @@ from .core.tolerance_questions import (code_fingerprint, evaluate_chunk, HeadLoa
                                        KIND_NAMES, OperatingRange, PlannedPath, STATUS_NAMES)
 from .core.tolerance_sampling import (parse_spread, sample_waypoints, SAMPLERS, Tolerance,
                                       unit_samples)
-from .core.tolerance_statistics import (noise_level, proportion_interval, quantiles,
-                                        rank_correlations)
+from .core.tolerance_statistics import (describe_figure, event_probability, noise_level,
+                                        rank_correlations, tally)
 from .problem import APPLY_ORDER, DEFAULT_FIELDS, PARAMETERS
 
 QUESTIONS = ('range', 'path', 'head-load')
@@ -348,71 +348,53 @@ class ToleranceResult:
 
     def _make_summary(self):
         ok = self.valid()
-        n_ok = int(ok.sum())
-        status = self.figures['status']
-        counts = {STATUS_NAMES[int(c)]: int((status == c).sum()) for c in np.unique(status)
-                  if math.isfinite(c)}
-        figures, codes = {}, {}
+        figures, codes, probabilities = {}, {}, {}
         for name, values in self.figures.items():
-            v = values[ok]
             if name in CODE_FIGURES:
-                names = KIND_NAMES if name.endswith('_kind') else None
-                fin = v[np.isfinite(v)]
-                codes[name] = {(names[int(c)] if names else f'{c:g}'): int((fin == c).sum())
-                               for c in np.unique(fin)}
-                continue
-            if name in self.question.EVENTS:
-                continue
-            fin = v[np.isfinite(v)]
-            figures[name] = {
-                'count': int(fin.size),
-                'mean': float(fin.mean()) if fin.size else math.nan,
-                'std': float(fin.std(ddof=1)) if fin.size > 1 else math.nan,
-                'min': float(fin.min()) if fin.size else math.nan,
-                'max': float(fin.max()) if fin.size else math.nan,
-                'quantiles': {f'{100 * q:g}%': x for q, x in quantiles(fin).items()}}
-        probabilities = {}
-        for name in self.question.EVENTS:
-            v = self.figures[name][ok]
-            v = v[np.isfinite(v)]
-            k, n = int(v.sum()), int(v.size)
-            lo, hi = proportion_interval(k, n, self.confidence, self.interval)
-            probabilities[name] = {'events': k, 'trials': n,
-                                   'p': k / n if n else math.nan, 'interval': [lo, hi],
-                                   'confidence': self.confidence, 'method': self.interval}
-        sensitivity, size_sensitivity = {}, {}
+                codes[name] = tally(values[ok], KIND_NAMES if name.endswith('_kind') else None)
+            elif name in self.question.EVENTS:
+                probabilities[name] = event_probability(values[ok], self.confidence,
+                                                        self.interval)
+            else:
+                figures[name] = describe_figure(values[ok])
+        return {
+            'question': self.question.name,
+            'samples': self.samples, 'valid': int(ok.sum()),
+            'status': tally(self.figures['status'], STATUS_NAMES),
+            'seed': self.seed, 'sampler': self.sampler, 'chunk': self.chunk,
+            'design': self.design_record(),
+            'tolerances': [self.tolerance_record(t) for t in self.tolerances],
+            'engine': self.engine_record(),
+            'figures': figures, 'kinds': codes, 'probabilities': probabilities,
+            'sensitivity': self.sensitivity(ok),
+            'worst': self.worst(),
+        }
+
+    def sensitivity(self, ok):
+        """Rank correlations of every figure with every parameter and with the size of
+        its error (valid samples only)."""
         nominal = np.array([t['nominal'] for t in map(self.tolerance_record, self.tolerances)])
         error_size = np.abs(self.inputs - nominal)
+        signed, size = {}, {}
         for name, values in self.figures.items():
             if name in CODE_FIGURES and name not in ('num_stable', 'jumps'):
                 continue
             v = np.where(ok, values, math.nan)
             r = rank_correlations(self.inputs, v)
-            if np.all(np.isnan(r)):
-                continue
-            sensitivity[name] = _by_label(self.labels, r)
-            size_sensitivity[name] = _by_label(self.labels, rank_correlations(error_size, v))
-        return {
-            'question': self.question.name,
-            'samples': self.samples, 'valid': n_ok, 'status': counts,
-            'seed': self.seed, 'sampler': self.sampler, 'chunk': self.chunk,
-            'design': self.design_record(),
-            'tolerances': [self.tolerance_record(t) for t in self.tolerances],
-            'engine': {'engine': self.run.engine, 'workers': self.run.workers,
-                       'seconds': self.run.wall_seconds,
-                       'startup_seconds': self.run.startup_seconds,
-                       'chunks': self.run.chunks,
-                       'chunk_seconds': self.run.chunk_seconds,
-                       'chunk_cpu_seconds': self.run.chunk_cpu_seconds,
-                       'samples_per_second': self.samples / self.run.wall_seconds
-                       if self.run.wall_seconds > 0 else math.inf,
-                       'overhead': self.run.overhead},
-            'figures': figures, 'kinds': codes, 'probabilities': probabilities,
-            'sensitivity': {'measure': 'spearman rank correlation',
-                            'noise_level': noise_level(n_ok), 'figures': sensitivity,
-                            'error_size': size_sensitivity},
-            'worst': self.worst(),
-        }
+            if not np.all(np.isnan(r)):
+                signed[name] = _by_label(self.labels, r)
+                size[name] = _by_label(self.labels, rank_correlations(error_size, v))
+        return {'measure': 'spearman rank correlation', 'noise_level': noise_level(int(ok.sum())),
+                'figures': signed, 'error_size': size}
+
+    def engine_record(self):
+        run = self.run
+        return {'engine': run.engine, 'workers': run.workers, 'seconds': run.wall_seconds,
+                'startup_seconds': run.startup_seconds, 'chunks': run.chunks,
+                'chunk_seconds': run.chunk_seconds, 'chunk_cpu_seconds': run.chunk_cpu_seconds,
+                'samples_per_second': (self.samples / run.wall_seconds
+                                       if run.wall_seconds > 0 else math.inf),
+                'overhead': run.overhead}
 
     def design_record(self):
         d = self.design

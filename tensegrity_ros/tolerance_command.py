@@ -54,6 +54,13 @@ def add_parser(sub, add_parameter_options, values_of, finite_float, positive_int
 
 
 def _add_common(q, finite_float, positive_int, question):
+    _add_design(q, finite_float, question)
+    _add_sampling(q, finite_float, positive_int)
+    _add_engine(q, positive_int)
+    _add_output(q)
+
+
+def _add_design(q, finite_float, question):
     design = q.add_argument_group('design')
     design.add_argument('--theta1', type=finite_float, metavar='RAD',
                         help='one module: start guess theta1 (with --theta2; default: the '
@@ -77,6 +84,9 @@ def _add_common(q, finite_float, positive_int, question):
                                  "sample's own rho)")
         design.add_argument('--rho-bounds', type=finite_float, nargs=2, metavar=('MIN', 'MAX'),
                             help='search interval in rho (default 0 .. 2 (L1 + L2))')
+
+
+def _add_sampling(q, finite_float, positive_int):
     t = q.add_argument_group('tolerances and sampling')
     t.add_argument('--tol', action='append', metavar='NAME=SPREAD', default=[],
                    help='a tolerance: NAME=[uniform:|normal:]SPREAD[%%][:CUT], e.g. k=5%% '
@@ -95,6 +105,9 @@ def _add_common(q, finite_float, positive_int, question):
     t.add_argument('--exact', action='store_true',
                    help='solve every sample with the scalar functions (`range`/`track` '
                         'themselves) instead of the vectorised branch follower: the reference')
+
+
+def _add_engine(q, positive_int):
     e = q.add_argument_group('engine (dask.distributed)')
     e.add_argument('--processes', type=positive_int, metavar='P',
                    help='worker processes of the LocalCluster (default: all cores); 1 runs '
@@ -106,6 +119,9 @@ def _add_common(q, finite_float, positive_int, question):
                    help='samples per task (default: by question; the answer does not depend '
                         'on it)')
     e.add_argument('--no-progress', action='store_true', help='no progress bar')
+
+
+def _add_output(q):
     o = q.add_argument_group('output')
     o.add_argument('--json', metavar='FILE', help="write the report as JSON ('-': stdout)")
     o.add_argument('--csv', metavar='FILE', help="write every sample as CSV ('-': stdout)")

@@ -19,27 +19,7 @@ def _g(v, digits=6):
 
 def report_text(s):
     """The summary as a few tables of text."""
-    lines = [f'tolerance study: question {s["question"]}, {s["samples"]} samples '
-             f'({s["sampler"]}, seed {s["seed"]}), {s["valid"]} answered'
-             + ('' if s['valid'] == s['samples'] else
-                ' (' + ', '.join(f'{k}: {v}' for k, v in s['status'].items()) + ')')]
-    e = s['engine']
-    lines.append(f'engine: {e["engine"]}, {e["chunks"]} chunks of {s["chunk"]}: '
-                 f'{e["seconds"]:.2f} s ({e["samples_per_second"]:.0f} samples/s; '
-                 f'start-up {e["startup_seconds"]:.2f} s; overhead {100 * e["overhead"]:.1f} %)')
-    lines.append('tolerances: ' + ', '.join(
-        f'{t["parameter"]} = {_g(t["nominal"])}'
-        + (f' +- {t["spec"]}' if t['distribution'] == 'uniform' else f', {t["spec"]}')
-        for t in s['tolerances']))
-    if s['figures']:
-        width = max(len(n) for n in s['figures'])
-        levels = next(iter(s['figures'].values()))['quantiles']
-        head = ['figure'.ljust(width), 'count'.rjust(6)] + [q.rjust(12) for q in levels]
-        lines += ['', 'quantiles:', '  ' + ' '.join(head)]
-        for name, f in s['figures'].items():
-            lines.append('  ' + ' '.join([name.ljust(width), str(f['count']).rjust(6)]
-                                         + [_g(v, 8).rjust(12)
-                                            for v in f['quantiles'].values()]))
+    lines = _head_lines(s) + _quantile_lines(s)
     if s['kinds']:
         lines += ['', 'counts:']
         for name, counts in s['kinds'].items():
@@ -51,8 +31,42 @@ def report_text(s):
             lines.append(f'  {name}: {p["events"]}/{p["trials"]} = {_g(p["p"], 4)}, '
                          f'{100 * p["confidence"]:g} % interval [{_g(lo, 4)}, {_g(hi, 4)}] '
                          f'({p["method"]})')
+    return '\n'.join(lines + _sensitivity_lines(s) + _worst_lines(s)) + '\n'
+
+
+def _head_lines(s):
+    e = s['engine']
+    status = ', '.join(f'{k}: {v}' for k, v in s['status'].items())
+    tolerances = ', '.join(
+        f'{t["parameter"]} = {_g(t["nominal"])}'
+        + (f' +- {t["spec"]}' if t['distribution'] == 'uniform' else f', {t["spec"]}')
+        for t in s['tolerances'])
+    return [f'tolerance study: question {s["question"]}, {s["samples"]} samples '
+            f'({s["sampler"]}, seed {s["seed"]}), {s["valid"]} answered'
+            + ('' if s['valid'] == s['samples'] else f' ({status})'),
+            f'engine: {e["engine"]}, {e["chunks"]} chunks of {s["chunk"]}: '
+            f'{e["seconds"]:.2f} s ({e["samples_per_second"]:.0f} samples/s; '
+            f'start-up {e["startup_seconds"]:.2f} s; overhead {100 * e["overhead"]:.1f} %)',
+            f'tolerances: {tolerances}']
+
+
+def _quantile_lines(s):
+    if not s['figures']:
+        return []
+    width = max(len(n) for n in s['figures'])
+    levels = next(iter(s['figures'].values()))['quantiles']
+    head = ['figure'.ljust(width), 'count'.rjust(6)] + [q.rjust(12) for q in levels]
+    lines = ['', 'quantiles:', '  ' + ' '.join(head)]
+    for name, f in s['figures'].items():
+        lines.append('  ' + ' '.join([name.ljust(width), str(f['count']).rjust(6)]
+                                     + [_g(v, 8).rjust(12) for v in f['quantiles'].values()]))
+    return lines
+
+
+def _sensitivity_lines(s):
     sens = s['sensitivity']
     labels = [t['parameter'] for t in s['tolerances']]
+    lines = []
     for key, what in (('figures', 'with each parameter'),
                       ('error_size', 'with the size of its error |x - nominal| (even '
                                      'effects)')):
@@ -67,17 +81,22 @@ def report_text(s):
             lines.append('  ' + ' '.join([name.ljust(width)]
                                          + [('-' if r[lab] is None else f'{r[lab]:+.3f}')
                                             .rjust(max(9, len(lab))) for lab in labels]))
-    if s['worst']:
-        lines += ['', f'worst samples (by {s["worst"][0]["figure"]}):']
-        for w in s['worst']:
-            values = ', '.join(f'{k}={_g(v, 10)}' for k, v in w['parameters'].items())
-            lines.append(f'  #{w["index"]}: {w["figure"]} = {_g(w["value"], 8)} '
-                         f'({w["status"]}); {values}')
-            if w.get('config'):
-                lines.append(f'    config {w["config_file"]}: write the "config" text of the '
-                             f'JSON report (or --replay-dir)')
-            lines += [f'    {cmd}' for cmd in w['replay']]
-    return '\n'.join(lines) + '\n'
+    return lines
+
+
+def _worst_lines(s):
+    if not s['worst']:
+        return []
+    lines = ['', f'worst samples (by {s["worst"][0]["figure"]}):']
+    for w in s['worst']:
+        values = ', '.join(f'{k}={_g(v, 10)}' for k, v in w['parameters'].items())
+        lines.append(f'  #{w["index"]}: {w["figure"]} = {_g(w["value"], 8)} '
+                     f'({w["status"]}); {values}')
+        if w.get('config'):
+            lines.append(f'    parameter file {w["config_file"]}: the "config" text of the '
+                         f'JSON report (--replay-dir writes it)')
+        lines += [f'    {cmd}' for cmd in w['replay']]
+    return lines
 
 
 def _new_figure(size):

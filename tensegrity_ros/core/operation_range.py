@@ -340,9 +340,8 @@ def _theta_close(a, b, tol):
 
 
 def _merges_with_flats(P, t1, t2, rho, sigma, est, dtheta):
-    """A non-flat branch of an unloaded module ends where it merges with a flat one: the
-    flats' degeneracies it heads for (theta - flat ~ sqrt(distance)) as end candidates,
-    and the distance to the nearest one ahead the square-root law cannot judge yet."""
+    """Where a non-flat unloaded branch may merge with a flat one (the flats' degeneracies
+    it heads for, sqrt law), and how far the nearest one ahead the law cannot judge yet."""
     candidates, too_far = [], math.inf
     for f in _FLATS:
         for r in _flat_degenerate_rhos(P, f):
@@ -360,13 +359,12 @@ def _localise(P, sym, t1, t2, rho, sigma, est, dtheta, v):
     """Try to locate the end of the branch ahead of (t1, t2, rho) (estimated distance est).
 
     Returns (rho*, theta*, kind, symmetry) or None when no validated end is found (or a
-    nearer end ahead is still too far to judge: the branch steps on towards it first)."""
-    too_far = math.inf          # nearest end ahead the square-root law could not judge yet
+    nearer end ahead is still too far to judge: the branch steps on first)."""
     flat = None
     for f in _FLATS:
         if _theta_close((t1, t2), f, 1e-9):
             flat = f
-    candidates = []
+    candidates, too_far = [], math.inf      # too_far: the nearest end the sqrt law can't judge
     if MIRROR in sym:
         if flat is not None:
             for r in _flat_degenerate_rhos(P, flat):

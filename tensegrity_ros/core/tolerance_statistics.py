@@ -79,3 +79,33 @@ def noise_level(count):
     """Two standard errors of a rank correlation between independent variables
     (~2 / sqrt(n - 1)): smaller correlations are not told from noise."""
     return 2.0 / math.sqrt(count - 1) if count > 1 else math.inf
+
+
+def describe_figure(values):
+    """Count, mean, std, min, max and :data:`QUANTILES` of the finite ``values`` (NaN
+    where there are too few)."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return {'count': int(v.size),
+            'mean': float(v.mean()) if v.size else math.nan,
+            'std': float(v.std(ddof=1)) if v.size > 1 else math.nan,
+            'min': float(v.min()) if v.size else math.nan,
+            'max': float(v.max()) if v.size else math.nan,
+            'quantiles': {f'{100 * q:g}%': x for q, x in quantiles(v).items()}}
+
+
+def tally(codes, names=None):
+    """{name (or the code as text): how many} of the finite ``codes``."""
+    v = np.asarray(codes, dtype=float)
+    v = v[np.isfinite(v)]
+    return {(names[int(c)] if names else f'{c:g}'): int((v == c).sum()) for c in np.unique(v)}
+
+
+def event_probability(events, confidence=0.95, method='clopper-pearson'):
+    """The probability of a 0/1 outcome (finite ``events``) with its interval."""
+    v = np.asarray(events, dtype=float)
+    v = v[np.isfinite(v)]
+    k, n = int(v.sum()), int(v.size)
+    low, high = proportion_interval(k, n, confidence, method)
+    return {'events': k, 'trials': n, 'p': k / n if n else math.nan, 'interval': [low, high],
+            'confidence': confidence, 'method': method}

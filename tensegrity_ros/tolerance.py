@@ -37,7 +37,7 @@ from .core.tolerance_questions import (code_fingerprint, evaluate_chunk, HeadLoa
 from .core.tolerance_sampling import (parse_spread, sample_waypoints, SAMPLERS, Tolerance,
                                       unit_samples)
 from .core.tolerance_statistics import (describe_figure, event_probability, noise_level,
-                                        rank_correlations, tally)
+                                        rank_correlation_table, tally)
 from .problem import APPLY_ORDER, DEFAULT_FIELDS, PARAMETERS
 
 QUESTIONS = ('range', 'path', 'head-load')
@@ -375,17 +375,14 @@ class ToleranceResult:
         its error (valid samples only)."""
         nominal = np.array([t['nominal'] for t in map(self.tolerance_record, self.tolerances)])
         error_size = np.abs(self.inputs - nominal)
-        signed, size = {}, {}
-        for name, values in self.figures.items():
-            if name in CODE_FIGURES and name not in ('num_stable', 'jumps'):
-                continue
-            v = np.where(ok, values, math.nan)
-            r = rank_correlations(self.inputs, v)
-            if not np.all(np.isnan(r)):
-                signed[name] = _by_label(self.labels, r)
-                size[name] = _by_label(self.labels, rank_correlations(error_size, v))
+        figures = {name: np.where(ok, values, math.nan) for name, values in self.figures.items()
+                   if name not in CODE_FIGURES or name in ('num_stable', 'jumps')}
+        signed = rank_correlation_table(self.inputs, figures)
+        size = rank_correlation_table(error_size, figures)
+        keep = [name for name, r in signed.items() if not np.all(np.isnan(r))]
         return {'measure': 'spearman rank correlation', 'noise_level': noise_level(int(ok.sum())),
-                'figures': signed, 'error_size': size}
+                'figures': {name: _by_label(self.labels, signed[name]) for name in keep},
+                'error_size': {name: _by_label(self.labels, size[name]) for name in keep}}
 
     def engine_record(self):
         run = self.run

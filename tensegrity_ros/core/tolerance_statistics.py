@@ -55,23 +55,37 @@ def proportion_interval(successes, trials, confidence=0.95, method='clopper-pear
 def rank_correlations(inputs, figure):
     """Spearman's rank correlation of ``figure`` (n,) with each column of ``inputs``
     (n, d), over the rows where the figure is finite.  NaN where a column or the figure
-    is constant there (no ranking).  (Elementwise sums, not BLAS: a threaded BLAS dot
-    product is slow on a loaded machine.)"""
+    is constant there (no ranking)."""
+    return rank_correlation_table(inputs, {'figure': figure}).get('figure', np.full(
+        np.shape(inputs)[1], math.nan))
+
+
+def rank_correlation_table(inputs, figures):
+    """{name: :func:`rank_correlations` of ``inputs`` with figure ``name``} for a dict of
+    figures; the inputs are ranked once for every set of rows where figures are finite.
+    (Elementwise sums, not BLAS: a threaded BLAS dot product is slow on a loaded
+    machine.)  Figures finite on fewer than 3 rows are left out."""
     x = np.asarray(inputs, dtype=float)
-    y = np.asarray(figure, dtype=float)
-    keep = np.isfinite(y)
-    x, y = x[keep], y[keep]
-    out = np.full(x.shape[1], math.nan)
-    if y.size < 3 or x.shape[1] == 0:
-        return out
-    ry = stats.rankdata(y)
-    ry -= ry.mean()
-    rx = stats.rankdata(x, axis=0)
-    rx -= rx.mean(axis=0)
-    ny = math.sqrt(float(np.sum(ry * ry)))
-    nx = np.sqrt(np.sum(rx * rx, axis=0))
-    good = (nx > 0.0) & (ny > 0.0)
-    out[good] = np.sum(rx[:, good] * ry[:, None], axis=0) / (nx[good] * ny)
+    ranked = {}
+    out = {}
+    for name, figure in figures.items():
+        y = np.asarray(figure, dtype=float)
+        keep = np.isfinite(y)
+        if keep.sum() < 3 or x.shape[1] == 0:
+            continue
+        key = keep.tobytes()
+        if key not in ranked:
+            rx = stats.rankdata(x[keep], axis=0)
+            rx -= rx.mean(axis=0)
+            ranked = {key: (rx, np.sqrt(np.sum(rx * rx, axis=0)))}     # keep one set
+        rx, nx = ranked[key]
+        ry = stats.rankdata(y[keep])
+        ry -= ry.mean()
+        ny = math.sqrt(float(np.sum(ry * ry)))
+        r = np.full(x.shape[1], math.nan)
+        good = (nx > 0.0) & (ny > 0.0)
+        r[good] = np.sum(rx[:, good] * ry[:, None], axis=0) / (nx[good] * ny)
+        out[name] = r
     return out
 
 

@@ -58,6 +58,20 @@ def timed(design, question, tols, n, **engine):
     return result, run, cpu
 
 
+def client_cost(design, question, tols, n):
+    """Seconds per sample the command's own process spends around the chunks: drawing
+    the samples up front and the summary (statistics, worst samples)."""
+    from tensegrity_ros.core.tolerance_sampling import unit_samples
+    from tensegrity_ros.tolerance import parse_tolerances
+    t0 = time.perf_counter()
+    unit_samples(n, len(parse_tolerances(tols, design)), 'sobol', 1)
+    draw = time.perf_counter() - t0
+    result = tolerance_study(design, question, tols, samples=n, seed=1, worst=5, processes=1)
+    t0 = time.perf_counter()
+    result.summary()
+    return (draw + time.perf_counter() - t0) / n
+
+
 def task_overhead(address, count=400):
     """Seconds per task of dask itself: ``count`` empty tasks through the scheduler."""
     from distributed import Client
@@ -128,20 +142,24 @@ def main():
                   f'workers, {"met" if one >= target else "not met"} on 1 process, '
                   f'{"met" if 2 / best["LocalCluster x2"][1] >= target else "NOT met"} by 2 '
                   f'free cores at the measured CPU cost')
+            client = client_cost(design, question, tols, n)
+            print(f'{name}: client work (draw the samples, summarise): '
+                  f'{1e6 * client:.1f} us/sample')
             rows.append((name, one, two, best['1 process'][1], best['LocalCluster x2'][3],
-                         best['LocalCluster x2'][2]))
+                         client))
     finally:
         cluster.close()
     print(f'load average after: {load()}')
     print('\n64-core cluster (model: 64 single-threaded workers at the measured CPU cost per '
           'sample, the chunks as now, dask at the measured cost per task serialised at the '
-          'scheduler):')
-    for name, one, two, cpu, chunk, run in rows:
+          'scheduler, the client drawing and summarising at its measured cost):')
+    for name, one, two, cpu, chunk, client in rows:
         compute = 64 / cpu
         scheduler = chunk / per_task
         print(f'  {name}: compute-bound {compute:10.0f} samples/s; scheduler-bound '
               f'{scheduler:12.0f} samples/s (chunk {chunk} / {1e3 * per_task:.2f} ms); '
-              f'expected ~{min(compute, scheduler):.0f} samples/s')
+              f'client-bound {1 / client:10.0f} samples/s; expected '
+              f'~{min(compute, scheduler, 1 / client):.0f} samples/s')
 
 
 if __name__ == '__main__':

@@ -37,7 +37,7 @@ from .core.tolerance_questions import (code_fingerprint, evaluate_chunk, HeadLoa
 from .core.tolerance_sampling import (parse_spread, sample_waypoints, SAMPLERS, Tolerance,
                                       unit_samples)
 from .core.tolerance_statistics import (describe_figure, event_probability, noise_level,
-                                        rank_correlation_table, tally)
+                                        rank_correlation_tables, tally)
 from .problem import APPLY_ORDER, DEFAULT_FIELDS, PARAMETERS
 
 QUESTIONS = ('range', 'path', 'head-load')
@@ -377,8 +377,7 @@ class ToleranceResult:
         error_size = np.abs(self.inputs - nominal)
         figures = {name: np.where(ok, values, math.nan) for name, values in self.figures.items()
                    if name not in CODE_FIGURES or name in ('num_stable', 'jumps')}
-        signed = rank_correlation_table(self.inputs, figures)
-        size = rank_correlation_table(error_size, figures)
+        signed, size = rank_correlation_tables([self.inputs, error_size], figures)
         keep = [name for name, r in signed.items() if not np.all(np.isnan(r))]
         return {'measure': 'spearman rank correlation', 'noise_level': noise_level(int(ok.sum())),
                 'figures': {name: _by_label(self.labels, signed[name]) for name in keep},

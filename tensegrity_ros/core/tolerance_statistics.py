@@ -56,37 +56,42 @@ def rank_correlations(inputs, figure):
     """Spearman's rank correlation of ``figure`` (n,) with each column of ``inputs``
     (n, d), over the rows where the figure is finite.  NaN where a column or the figure
     is constant there (no ranking)."""
-    return rank_correlation_table(inputs, {'figure': figure}).get('figure', np.full(
-        np.shape(inputs)[1], math.nan))
+    table = rank_correlation_tables([inputs], {'figure': figure})[0]
+    return table.get('figure', np.full(np.shape(inputs)[1], math.nan))
 
 
-def rank_correlation_table(inputs, figures):
-    """{name: :func:`rank_correlations` of ``inputs`` with figure ``name``} for a dict of
-    figures; the inputs are ranked once for every set of rows where figures are finite.
-    (Elementwise sums, not BLAS: a threaded BLAS dot product is slow on a loaded
-    machine.)  Figures finite on fewer than 3 rows are left out."""
-    x = np.asarray(inputs, dtype=float)
-    ranked = {}
-    out = {}
+def rank_correlation_tables(input_sets, figures):
+    """For each inputs array (n, d) of ``input_sets``, {name: :func:`rank_correlations`
+    of it with figure ``name``}; each figure is ranked once, the inputs once for every set
+    of rows where figures are finite.  (Elementwise sums, not BLAS: a threaded BLAS dot
+    product is slow on a loaded machine.)  Figures finite on fewer than 3 rows are left
+    out."""
+    xs = [np.asarray(x, dtype=float) for x in input_sets]
+    tables = [{} for _ in xs]
+    ranked_key, ranked = None, None
     for name, figure in figures.items():
         y = np.asarray(figure, dtype=float)
         keep = np.isfinite(y)
-        if keep.sum() < 3 or x.shape[1] == 0:
+        if keep.sum() < 3:
             continue
-        key = keep.tobytes()
-        if key not in ranked:
-            rx = stats.rankdata(x[keep], axis=0)
-            rx -= rx.mean(axis=0)
-            ranked = {key: (rx, np.sqrt(np.sum(rx * rx, axis=0)))}     # keep one set
-        rx, nx = ranked[key]
+        if ranked_key != keep.tobytes():            # the inputs ranked on these rows
+            ranked_key, ranked = keep.tobytes(), [_centred_ranks(x[keep]) for x in xs]
         ry = stats.rankdata(y[keep])
         ry -= ry.mean()
         ny = math.sqrt(float(np.sum(ry * ry)))
-        r = np.full(x.shape[1], math.nan)
-        good = (nx > 0.0) & (ny > 0.0)
-        r[good] = np.sum(rx[:, good] * ry[:, None], axis=0) / (nx[good] * ny)
-        out[name] = r
-    return out
+        for table, (rx, nx) in zip(tables, ranked):
+            r = np.full(rx.shape[1], math.nan)
+            good = (nx > 0.0) & (ny > 0.0)
+            r[good] = np.sum(rx[:, good] * ry[:, None], axis=0) / (nx[good] * ny)
+            table[name] = r
+    return tables
+
+
+def _centred_ranks(x):
+    """Column ranks of ``x`` minus their mean, and their norms."""
+    rx = stats.rankdata(x, axis=0) if x.shape[1] else np.zeros(x.shape)
+    rx -= rx.mean(axis=0) if x.shape[0] else 0.0
+    return rx, np.sqrt(np.sum(rx * rx, axis=0))
 
 
 def noise_level(count):

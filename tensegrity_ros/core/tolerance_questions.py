@@ -420,8 +420,9 @@ def code_fingerprint():
     """A digest of the core's source: the code every sample's answer comes from.  A
     cluster's workers must run the same (else the same seed could answer differently)."""
     digest = hashlib.sha256()
-    for path in sorted(pathlib.Path(__file__).parent.glob('*.py')):
-        digest.update(path.name.encode())
+    core = pathlib.Path(__file__).parent
+    for path in sorted(core.rglob('*.py')):                 # core/continuation/ too
+        digest.update(path.relative_to(core).as_posix().encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 

@@ -142,3 +142,24 @@ def test_a_progress_bar_counts_the_samples():
         tolerance_study(module_design({'rho': 0.5, 'F': 5.0}), 'range', ['k=5%'], samples=2048,
                         chunk=512, processes=1, progress=True)
     assert '2048/2048' in err.getvalue() and 'samples/s' in err.getvalue()
+
+
+def test_workers_running_other_code_are_refused():
+    from tensegrity_ros.tolerance_engine import _check_workers, WorkerMismatch
+
+    class Client:
+        def __init__(self, answer):
+            self.answer = answer
+
+        def run(self, function):
+            if isinstance(self.answer, Exception):
+                raise self.answer
+            return self.answer
+
+    def mine():
+        return 'abc'
+    _check_workers(Client({'tcp://a': 'abc', 'tcp://b': 'abc'}), mine)
+    with pytest.raises(WorkerMismatch, match='1 of 2 workers run other tensegrity_ros code'):
+        _check_workers(Client({'tcp://a': 'abc', 'tcp://b': 'old'}), mine)
+    with pytest.raises(WorkerMismatch, match='cannot run this tensegrity_ros code'):
+        _check_workers(Client(AttributeError('no code_fingerprint')), mine)

@@ -48,9 +48,9 @@ HEAD_NAMES = ('F', 'F3', 'F4', 'F3x', 'F4x')
 #: bench_tolerance.py), and the vectorised questions amortise their per-step numpy
 #: overhead over the rows (a range sample with a start guess: 55 us of CPU in chunks of
 #: 512, 42 in 2048, 32 in 8192, at load 8).  Larger studies get larger chunks, up to these.
-CHUNK_SIZES = {'range': 8192, 'path': 4096, 'head-load': 256, 'neck': 16}
+CHUNK_SIZES = {'range': 8192, 'path': 8192, 'head-load': 8192, 'neck': 16}
 #: Fewest samples per chunk (unless the study is smaller).
-MIN_CHUNK = {'range': 2048, 'path': 1024, 'head-load': 16, 'neck': 2}
+MIN_CHUNK = {'range': 2048, 'path': 2048, 'head-load': 2048, 'neck': 2}
 #: Sensitivities use at most this many (valid) samples, the first ones.
 SENSITIVITY_SAMPLES = 2 ** 17
 #: Figures that code a kind (counted, not averaged).

@@ -134,11 +134,14 @@ def main():
             one, two = best['1 process'][0], best['LocalCluster x2'][0]
             for engine, (rate, cpu, run, chunk, during) in best.items():
                 vs = f', x{rate / base:.1f} the scalar reference' if base else ''
+                mean_chunk = run.chunk_seconds / run.chunks
+                task = '' if engine == '1 process' else (
+                    f', task overhead {100 * per_task / mean_chunk:.1f} % (dask per task / '
+                    f'chunk)')
                 print(f'{name}: {engine:15s} {n} samples in {run.chunks} chunks of {chunk}: '
                       f'{rate:9.0f} samples/s, CPU {1e6 * cpu:.0f} us/sample '
-                      f'({1 / cpu:.0f} samples per CPU-second), chunk '
-                      f'{run.chunk_seconds / run.chunks:.3f} s, overhead '
-                      f'{100 * run.overhead:.1f} %{vs} [load {during}]')
+                      f'({1 / cpu:.0f} samples per CPU-second), chunk {mean_chunk:.3f} s, '
+                      f'workers idle {100 * run.overhead:.1f} %{task}{vs} [load {during}]')
             efficiency = two / (2 * one)
             cpu_efficiency = best['1 process'][1] / best['LocalCluster x2'][1]
             print(f'{name}: scaling efficiency on 2 workers: {100 * efficiency:.0f} % of wall '

@@ -81,7 +81,9 @@ def _bar(progress, total, description):
     if not progress:
         return None
     from tqdm import tqdm
-    return tqdm(total=total, unit=' ' + description, dynamic_ncols=True, leave=False)
+    # one refresh per finished chunk (a few per second at most): none is skipped
+    return tqdm(total=total, unit=' ' + description, dynamic_ncols=True, leave=False,
+                mininterval=0.0)
 
 
 def _run_here(function, chunks, progress, sizes, description):

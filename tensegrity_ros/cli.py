@@ -38,7 +38,7 @@ import sys
 
 import numpy as np
 
-from . import snap_command
+from . import snap_command, tolerance_command
 from .core import InvalidParameterError, ModuleParams, equilibria, track_module
 from .core.start_state import start_state, upright_guess
 from .problem import (APPLY_ORDER, DEFAULT_FIELDS, PARAMETERS, describe, describe_modules,
@@ -151,7 +151,6 @@ def build_parser():
                     'SI units; angles in radians (tables show degrees).',
         epilog='Run "tensegrity COMMAND --help" for the options of a command.')
     sub = parser.add_subparsers(dest='command', metavar='COMMAND', required=True)
-
     p = sub.add_parser(
         'solve', help='every equilibrium at one parameter point (one module or a stack)',
         description='Print every equilibrium (at most 6) with its stability. With --modules, '
@@ -273,6 +272,7 @@ def build_parser():
 
     snap_command.add_snap_parser(sub, _add_parameter_options, finite_float).set_defaults(
         func=cmd_snap)
+    tolerance_command.add_parser(sub, _add_parameter_options, _values, finite_float, positive_int)
     return parser
 
 

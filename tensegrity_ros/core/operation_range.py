@@ -339,28 +339,38 @@ def _theta_close(a, b, tol):
     return abs(_wrap(a[0] - b[0])) <= tol and abs(_wrap(a[1] - b[1])) <= tol
 
 
+def _merges_with_flats(P, t1, t2, rho, sigma, est, dtheta):
+    """Where a non-flat unloaded branch may merge with a flat one (the flats' degeneracies
+    it heads for, sqrt law), and how far the nearest one ahead the law cannot judge yet."""
+    candidates, too_far = [], math.inf
+    for f in _FLATS:
+        for r in _flat_degenerate_rhos(P, f):
+            d = r - rho
+            pred = (t1 + 2 * d * dtheta[0], t2 + 2 * d * dtheta[1])
+            if _theta_close(pred, f, 0.3 * max(abs(_wrap(t1 - f[0])),
+                                               abs(_wrap(t2 - f[1]))) + 1e-6):
+                candidates.append((r, f, BRANCH_POINT, MIRROR))
+            elif 0.0 <= d * sigma <= 3.0 * est:
+                too_far = min(too_far, d * sigma)
+    return candidates, too_far
+
+
 def _localise(P, sym, t1, t2, rho, sigma, est, dtheta, v):
     """Try to locate the end of the branch ahead of (t1, t2, rho) (estimated distance est).
 
-    Returns (rho*, theta*, kind, symmetry) or None when no validated end is found."""
+    Returns (rho*, theta*, kind, symmetry) or None when no validated end is found (or a
+    nearer end ahead is still too far to judge: the branch steps on first)."""
     flat = None
     for f in _FLATS:
         if _theta_close((t1, t2), f, 1e-9):
             flat = f
-    candidates = []
+    candidates, too_far = [], math.inf      # too_far: the nearest end the sqrt law can't judge
     if MIRROR in sym:
         if flat is not None:
             for r in _flat_degenerate_rhos(P, flat):
                 candidates.append((r, flat, BRANCH_POINT, MIRROR))
         else:
-            # a non-flat branch of an unloaded module ends where it merges with a flat one
-            for f in _FLATS:
-                for r in _flat_degenerate_rhos(P, f):
-                    d = r - rho
-                    pred = (t1 + 2 * d * dtheta[0], t2 + 2 * d * dtheta[1])
-                    if _theta_close(pred, f, 0.3 * max(abs(_wrap(t1 - f[0])),
-                                                       abs(_wrap(t2 - f[1]))) + 1e-6):
-                        candidates.append((r, f, BRANCH_POINT, MIRROR))
+            candidates, too_far = _merges_with_flats(P, t1, t2, rho, sigma, est, dtheta)
     if not candidates:
         if SWAP in sym and abs(_wrap(t1 - t2)) < 1e-9 and abs(v[0] + v[1]) < 0.2:
             t, r, ok = _swap_newton(P, 0.5 * (t1 + t2), rho, False)
@@ -390,6 +400,7 @@ def _localise(P, sym, t1, t2, rho, sigma, est, dtheta, v):
             pred = (t1 + 2 * (r - rho) * dtheta[0], t2 + 2 * (r - rho) * dtheta[1])
             gap = max(abs(_wrap(t1 - th[0])), abs(_wrap(t2 - th[1])))
             if not _theta_close(pred, th, 0.35 * gap + 1e-7):
+                too_far = min(too_far, d)
                 continue
         else:
             pred = (t1 + (r - rho) * dtheta[0], t2 + (r - rho) * dtheta[1])
@@ -397,7 +408,7 @@ def _localise(P, sym, t1, t2, rho, sigma, est, dtheta, v):
                 continue
         if best is None or d < best[0]:
             best = (d, r, th, kind, symmetry)
-    if best is None:
+    if best is None or too_far < best[0]:     # (unloaded L2 = 1.2539 took rho = 0 for 0.127)
         return None
     _, r, th, kind, symmetry = best
     if kind == FOLD:

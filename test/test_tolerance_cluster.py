@@ -1,0 +1,159 @@
+"""A tolerance study on dask.distributed (issue 34), loopback only, every wait bounded:
+
+* the same seed gives identical numbers in this process, on a LocalCluster of 2 worker
+  processes and on a scheduler plus 2 workers started here as separate processes
+  (``dask scheduler --host 127.0.0.1``, ``dask worker tcp://127.0.0.1:PORT``);
+* a worker that dies in the middle of a chunk loses no sample (the scheduler reruns it);
+* Ctrl-C (SIGINT to the command's process group, as a terminal sends it) ends the
+  command with status 130 and leaves no worker process behind.
+
+The last two start LocalClusters of their own (~5 s each here): they run with
+TENSEGRITY_SLOW_TESTS=1 (``-m slow`` selects them).
+"""
+import json
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+import cloudpickle
+import numpy as np
+import psutil
+import pytest
+
+from tensegrity_ros.tolerance import module_design, tolerance_study
+from tensegrity_ros.tolerance_engine import run_chunks
+
+BIN = Path(sys.executable).parent
+slow = [pytest.mark.slow,
+        pytest.mark.skipif(not os.environ.get('TENSEGRITY_SLOW_TESTS'),
+                           reason='slow (a LocalCluster of its own): TENSEGRITY_SLOW_TESTS=1')]
+cloudpickle.register_pickle_by_value(sys.modules[__name__])     # workers need no test path
+
+
+def wait_for(condition, timeout, what):
+    """Spin until ``condition()`` is truthy (its value) or fail after ``timeout`` s."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        value = condition()
+        if value:
+            return value
+        time.sleep(0.1)
+    pytest.fail(f'timed out after {timeout} s waiting for {what}')
+
+
+def stop(process):
+    """End a process group started here (SIGTERM, then SIGKILL), bounded."""
+    if process.poll() is None:
+        os.killpg(process.pid, signal.SIGTERM)
+        try:
+            process.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait(timeout=15)
+
+
+@pytest.fixture
+def remote_scheduler(tmp_path):
+    """A dask scheduler and 2 single-threaded workers on 127.0.0.1, separate processes."""
+    info = tmp_path / 'scheduler.json'
+    env = dict(os.environ, DASK_DISTRIBUTED__WORKER__DAEMON='False')
+    started = []
+    log = open(tmp_path / 'cluster.log', 'w')
+    try:
+        started.append(subprocess.Popen(
+            [str(BIN / 'dask'), 'scheduler', '--host', '127.0.0.1', '--port', '0',
+             '--no-dashboard', '--scheduler-file', str(info), '--idle-timeout', '300'],
+            stdout=log, stderr=log, start_new_session=True, env=env))
+        address = wait_for(lambda: info.exists() and json.loads(info.read_text() or '{}')
+                           .get('address'), 60, 'the scheduler')
+        assert address.startswith('tcp://127.0.0.1:')
+        for i in range(2):
+            started.append(subprocess.Popen(
+                [str(BIN / 'dask'), 'worker', address, '--host', '127.0.0.1',
+                 '--nthreads', '1', '--nworkers', '1', '--no-dashboard', '--name', f'w{i}'],
+                stdout=log, stderr=log, start_new_session=True, env=env))
+        from distributed import Client
+        with Client(address, timeout=60) as client:
+            client.wait_for_workers(2, timeout=90)
+        yield address
+    finally:
+        for process in reversed(started):
+            stop(process)
+        log.close()
+
+
+def same(a, b):
+    assert a.keys() == b.keys()
+    for name in a:
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+
+
+def test_same_answer_in_process_on_a_local_cluster_and_on_a_remote_scheduler(remote_scheduler):
+    studies = [
+        (module_design({'rho': 0.5, 'F': 5.0}, guess=(-1.0, -1.0)), 'range',
+         ['k=5%', 'L2=normal:0.001', 'F3=normal:0.2'], 4096, 512, True),
+        (module_design({'rho': 0.5, 'F': 5.0}, legs=[{'rho': 0.157}, {'rho': 1.2}],
+                       guess=(-1.0, -1.0)), 'path', ['L2=normal:0.001', 'kc=2%'], 1024, 256,
+         False),
+    ]
+    for design, question, tols, n, chunk, on_local_cluster in studies:
+        here = tolerance_study(design, question, tols, samples=n, seed=5, processes=1,
+                               chunk=chunk)
+        remote = tolerance_study(design, question, tols, samples=n, seed=5, chunk=chunk,
+                                 scheduler=remote_scheduler)
+        assert here.run.chunks == remote.run.chunks > 2 and remote.run.workers == 2
+        same(here.figures, remote.figures)
+        assert json.dumps(here.summary()['figures']) == json.dumps(remote.summary()['figures'])
+        if on_local_cluster:            # (one LocalCluster start-up: ~3-5 s here)
+            local = tolerance_study(design, question, tols, samples=n, seed=5, processes=2,
+                                    chunk=chunk)
+            assert local.run.chunks == here.run.chunks and local.run.workers == 2
+            same(here.figures, local.figures)
+
+
+def die_once(marker, index, payload):
+    """A chunk whose worker process dies the first time it runs chunk 1."""
+    if index == 1 and not os.path.exists(marker):
+        with open(marker, 'w'):
+            pass
+        os._exit(1)
+    return (index, payload), 0.0, 0.0
+
+
+@slow[0]
+@slow[1]
+def test_a_worker_that_dies_loses_no_sample(tmp_path):
+    marker = str(tmp_path / 'died')
+    chunks = [(marker, i, list(range(10 * i, 10 * i + 10))) for i in range(4)]
+    results, run = run_chunks(die_once, chunks, processes=2)
+    assert os.path.exists(marker)                              # chunk 1's worker did die
+    assert results == [(i, list(range(10 * i, 10 * i + 10))) for i in range(4)]
+
+
+@slow[0]
+@slow[1]
+def test_ctrl_c_stops_the_command_and_its_workers():
+    command = [str(BIN / 'tensegrity'), 'tolerance', 'path', '--rho', '0.5', '--F', '5',
+               '--theta1', '-1', '--theta2', '-1', '--to', 'rho=0.1', '--tol', 'L2=0.01',
+               '--samples', '100000', '--exact', '--processes', '2', '--no-progress']
+    process = subprocess.Popen(command, start_new_session=True, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        parent = psutil.Process(process.pid)
+        workers = wait_for(lambda: [p for p in parent.children(recursive=True)
+                                    if 'python' in p.name()][:2]
+                           if len(parent.children(recursive=True)) >= 2 else None, 90,
+                           'the LocalCluster workers')
+        time.sleep(2.0)                         # let them start computing chunks
+        assert process.poll() is None
+        os.killpg(process.pid, signal.SIGINT)  # what a terminal's Ctrl-C sends
+        _, err = process.communicate(timeout=60)
+        assert process.returncode == 130, err
+        assert 'interrupted' in err
+        wait_for(lambda: not any(w.is_running() and w.status() != psutil.STATUS_ZOMBIE
+                                 for w in workers), 30, 'the workers to end')
+    finally:
+        stop(process)

@@ -12,9 +12,14 @@ simulator's bookkeeping: status, the verified rest state, the jump beside the tr
 Last the live neck: config/neck.yaml's fold (m2's rho 0.08 -> 0.12 at 0.05 m/s) in 20 ms
 ticks, a MovingNeck and a DynamicSimulator, real-time factors beside the module's.
 
+Every live real-time factor is stated with its accuracy: the largest |theta - theta_ref|
+(rad) over the ticks, theta_ref the same ticks integrated at rtol 1e-13 (atol 1e-15).
+
     python benchmarks/bench_snap.py
 """
 import time
+
+import numpy as np
 
 from tensegrity_ros.core import ModuleParams, settle, simulate_snap, track_module
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
@@ -23,6 +28,25 @@ from tensegrity_ros.core.moving_neck import MovingNeck
 from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
 from tensegrity_ros.core.simulator import ModuleLimits
 from tensegrity_ros.core.stack import Stack
+from tensegrity_ros.core.transient import SolverSettings
+
+#: The reference of the accuracy figures: the same ticks, integrated far more tightly.
+TIGHT = SolverSettings(rtol=1e-13, atol=1e-15)
+
+
+def ticked(make, ticks, dt, settings=SolverSettings()):
+    """Angles (ticks, k) of a live motion ``make(settings)`` advanced in ``ticks`` of ``dt`` s."""
+    live = make(settings)
+    out = []
+    for k in range(1, ticks + 1):
+        live.advance(k * dt)
+        out.append(np.ravel(live.theta))
+    return np.array(out)
+
+
+def accuracy(make, ticks, dt):
+    """max |theta - theta_ref| (rad) over the ticks, the reference at rtol 1e-13."""
+    return float(np.max(np.abs(ticked(make, ticks, dt) - ticked(make, ticks, dt, TIGHT))))
 
 
 def best_of(fn, repeat=3):
@@ -66,8 +90,12 @@ def neck_vs_module(p):
 
 
 def real_time_factor(p):
-    live = MovingModule(p, [-1.0, -1.0], damping=0.05, max_rate=0.1)
-    live.command(0.9, 0.0)
+    def make(settings=SolverSettings()):
+        live = MovingModule(p, [-1.0, -1.0], damping=0.05, max_rate=0.1, settings=settings)
+        live.command(0.9, 0.0)
+        return live
+
+    live = make()
     t0 = time.perf_counter()
     t = 0.0
     while t < 16.0:
@@ -75,7 +103,8 @@ def real_time_factor(p):
         live.advance(t)
     wall = time.perf_counter() - t0
     print(f'MovingModule, 10 ms ticks through the fig. 8a snap: 16 s simulated in '
-          f'{wall:.2f} s wall, real-time factor {16.0 / wall:.1f}')
+          f'{wall:.2f} s wall, real-time factor {16.0 / wall:.1f} at max |dtheta| '
+          f'{accuracy(make, 1600, 0.01):.1e} rad')
 
 
 def dynamics_mode_vs_moving_module(p, ticks=800):
@@ -106,9 +135,14 @@ def live_neck(ticks=100):
                ModuleParams(rho=0.08, f3y=-0.5, f4y=-0.5, **base))
     upright = [[0.754, 0.754], [0.813, 0.813], [0.831, 0.831]]
 
-    def bare():
-        live = MovingNeck(Stack(modules), upright, damping=0.01, max_rate=0.05)
+    def make(settings=SolverSettings()):
+        live = MovingNeck(Stack(modules), upright, damping=0.01, max_rate=0.05,
+                          settings=settings)
         live.command((0.09, 0.085, 0.12), 0.0)
+        return live
+
+    def bare():
+        live = make()
         for k in range(1, ticks + 1):
             live.advance(k * 0.02)
 
@@ -125,7 +159,7 @@ def live_neck(ticks=100):
     print(f'live neck (config/neck.yaml fold), {ticks} ticks of 20 ms: MovingNeck '
           f'{wall_bare:.2f} s wall (real-time factor {simulated / wall_bare:.2f}), '
           f'DynamicSimulator {wall_sim:.2f} s (real-time factor {simulated / wall_sim:.2f}), '
-          f'ratio {wall_sim / wall_bare:.2f}')
+          f'ratio {wall_sim / wall_bare:.2f}; max |dtheta| {accuracy(make, ticks, 0.02):.1e} rad')
 
 
 if __name__ == '__main__':

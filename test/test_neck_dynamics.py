@@ -91,3 +91,27 @@ def test_neck_bad_input():
                            [[-1, -1], [1, 1]])
     with pytest.raises(InvalidParameterError, match='2 values'):
         simulate_neck_snap(NECK, [0.5, 0.5, 0.5], 0.1, 0.1, [[1, 1], [1, 1]])
+
+
+def test_the_overshoot_of_a_rod_swinging_through_pi_is_read_on_continuous_angles():
+    """Issue 35: config/neck.yaml with an uneven heavy head (3.0 N down at A3, 3.1 N at A4
+    of m2), m0's actuator from 0.09 down across the neck's fold (0.0579) to 0.05 at
+    0.05 m/s, damping 0.01: m0's rod 1 swings through pi, where its wrapped angle jumps by
+    2 pi.  The overshoot was read on wrapped angles (1.423 rad); on the continuous
+    trajectory it is 0.730 rad, as MuJoCo finds.  The reference here: the history's own
+    angles unwrapped by numpy, the largest swing past the rest angle after the onset."""
+    base = dict(L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02)
+    neck = Stack((ModuleParams(rho=0.09, **base), ModuleParams(rho=0.085, **base),
+                  ModuleParams(rho=0.08, f3y=-3.0, f4y=-3.1, **base)))
+    snap = simulate_neck_snap(neck, [0.05, 0.085, 0.08], 0.05, 0.01,
+                              [[0.754, 0.754], [0.813, 0.813], [0.831, 0.831]])
+    s, h = snap.summary, snap.history
+    theta = np.unwrap(h.theta.reshape(len(h.t), -1), axis=0)
+    assert np.ptp(h.theta.reshape(len(h.t), -1)[:, 0]) > 6.0          # it wraps
+    final = np.array(s['final']['theta']).ravel()
+    final += 2 * np.pi * np.round((theta[-1] - final) / (2 * np.pi))
+    after = h.t >= s['onset_time']
+    start = theta[np.argmax(after)]
+    own = np.max((theta[after] - final) * np.sign(final - start))
+    assert s['overshoot'] == pytest.approx(0.730, abs=1e-3)
+    assert s['overshoot'] == pytest.approx(own, rel=1e-3)

@@ -187,3 +187,24 @@ def test_a_fold_crept_across_below_the_onset_speed_is_still_a_jump():
     assert jump.dynamics['onset_rho'] is None and jump.dynamics['peak_speed'] is None
     assert not jump.dynamics['lands_elsewhere'] and jump.dynamics['settled']
     assert sim.state.theta == pytest.approx(static.state.theta, abs=1e-9)
+
+
+def test_an_exactly_symmetric_module_past_c1_snaps_live_and_reports_the_jump():
+    """Issue 35: fig. 8a (symmetric bit for bit) ramped down through its branch point C1
+    to 0.1 at 0.1 m/s: the rods used to creep on the unstable symmetric branch for ever
+    (no jump, the dynamics mode never at rest); with the built-in imperfection they snap
+    as the one-shot simulation does (MuJoCo: peak 33.4 rad/s) and the jump is reported
+    at rest, the tracker's branch point beside it."""
+    ref = simulate_snap(FIG8A, 0.1, RATE, 0.01, LOWER).summary
+    sim = make(damping=0.01)
+    assert sim.command_rho(0, 0.1, 0).accepted
+    jumps, now = [], 0
+    while (sim.moving or now == 0) and now < 120 * 10**9:
+        now += TICK_NS
+        jumps += sim.advance(now).of_type(Jump)
+    [jump] = jumps
+    assert jump.kind == 'branch_point' and jump.modules[0].rho == pytest.approx(0.1514, abs=1e-4)
+    assert jump.dynamics['peak_speed'] == pytest.approx(33.4, rel=5e-3)
+    assert jump.dynamics['onset_time'] == pytest.approx(ref['onset_time'], rel=1e-4)
+    assert jump.dynamics['peak_speed'] == pytest.approx(ref['peak_speed'], rel=1e-5)
+    assert jump.to_theta[0][0] > 1.0 and sim.stable and not jump.dynamics['lands_elsewhere']

@@ -29,8 +29,8 @@ from . import module as _m
 from . import transient
 from .module import InvalidParameterError, ModuleParams
 from .tracking import ModulePath, ModuleTrack, settle, track_module
-from .transient import (MAX_HOLD, ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, RhoRamp,
-                        SnapHistory, SolverSettings, wrap as _wrap)
+from .transient import (MAX_HOLD, ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, Rest, RhoRamp,
+                        SnapHistory, SolverSettings, imperfection_torque, wrap as _wrap)
 
 @dataclass(frozen=True)
 class Snap:
@@ -40,8 +40,9 @@ class Snap:
     ``summary`` keys: ``onset_rho`` (rho when either |theta'| first exceeds
     ONSET_SPEED, or None), ``onset_time``, ``peak_speed`` (rad/s), ``peak_actuator_force``
     (N, signed, largest magnitude), ``overshoot`` (rad past the final angle after the
-    onset), ``settle_time`` (s from the onset, or from the ramp's end if nothing snapped,
-    until within SETTLE_TOLERANCE for good; None if not settled), ``settled``, ``final``
+    onset, on continuous angles), ``settle_time`` (s from the onset, or from the ramp's
+    end if nothing snapped, until the energy above the rest state stays below the settled
+    threshold: see :mod:`.transient`; None if not settled), ``settled``, ``final``
     ({theta1, theta2, speed} at the end), ``quasi_static`` (the tracker's jumps and final
     state) and ``lands_elsewhere`` (the rest state is not the tracker's).
     """
@@ -66,11 +67,13 @@ class ModuleEquations:
         self.ramp = ramp
         self.damping = transient.checked_damping(damping)
         self.inertia = np.array([params.m1 * params.L1 ** 2, params.m2 * params.L2 ** 2]) / 3.0
+        # the built-in imperfection (transient.IMPERFECTION) on rod 1
+        self.imperfection = np.array([imperfection_torque(params), 0.0])
 
     def rhs(self, t, y):
         """(theta', theta'') at time t."""
         grad = self.path.residual(y[:2], self.ramp.fraction(t))
-        acc = (-grad - self.damping * y[2:]) / self.inertia
+        acc = (self.imperfection - grad - self.damping * y[2:]) / self.inertia
         return np.array([y[2], y[3], acc[0], acc[1]])
 
     def gradient(self, t, theta):
@@ -83,7 +86,8 @@ class ModuleEquations:
 
     def acceleration(self, t, y):
         """theta'' at samples; ``y`` has shape (n, 4)."""
-        return (-self.gradient(t, y[:, :2]) - self.damping * y[:, 2:]) / self.inertia
+        return (self.imperfection - self.gradient(t, y[:, :2])
+                - self.damping * y[:, 2:]) / self.inertia
 
     def actuator_force(self, t, y):
         """Force (N) the actuator exerts on A2 along +x, at samples ``y`` (shape (n, 4)).
@@ -109,12 +113,6 @@ class ModuleEquations:
         x_g_ddot = 0.5 * self.end.L2 * (np.sin(t2) * alpha2 + np.cos(t2) * omega[:, 1] ** 2)
         return static + self.end.m2 * x_g_ddot
 
-    def mechanical_energy_near(self, y, theta_eq):
-        """Kinetic energy plus the quadratic potential about ``theta_eq`` (at rho1)."""
-        delta = _wrap(y[:2] - theta_eq)
-        h = _m.hessian(self.end, theta_eq)
-        return 0.5 * float(self.inertia @ y[2:] ** 2) + 0.5 * float(delta @ h @ delta)
-
     @staticmethod
     def after_ramp(y):
         """The angle rates carry on when rho stops (its rho'' impulse is neglected)."""
@@ -132,7 +130,8 @@ class ModuleEquations:
         return [rod1, rod2]
 
     def settled(self, y):
-        """The rest angles if the state is trapped within SETTLE_TOLERANCE for good, else None.
+        """The :class:`~.transient.Rest` if the state is trapped within SETTLE_TOLERANCE for
+        good, else None.
 
         With damping the mechanical energy never grows while rho is held, so once it
         is below the least energy any state outside the tolerance box has (half the
@@ -146,10 +145,22 @@ class ModuleEquations:
         except (RuntimeError, ValueError):
             return None
         theta_eq = eq.theta + 2.0 * math.pi * np.round((y[:2] - eq.theta) / (2.0 * math.pi))
-        floor = 0.5 * min(float(np.min(eq.eigenvalues)), float(np.min(self.inertia)))
-        if self.mechanical_energy_near(y, theta_eq) < 0.5 * floor * SETTLE_TOLERANCE ** 2:
-            return theta_eq
-        return None
+        rest = Rest(theta=theta_eq, excess=self.excess_energy(theta_eq),
+                    threshold=0.5 * min(float(np.min(eq.eigenvalues)),
+                                        float(np.min(self.inertia))) * SETTLE_TOLERANCE ** 2)
+        return rest if rest.excess(None, y[None, :])[0] < rest.threshold else None
+
+    def excess_energy(self, theta_eq):
+        """Energy (J) above the minimum ``theta_eq`` at rho1 of states (n, 4): kinetic plus
+        the quadratic potential about it (exact to third order in the distance, and free
+        of the cancellation of two large potentials)."""
+        h = _m.hessian(self.end, theta_eq)
+
+        def excess(t, ys):
+            delta = ys[:, :2] - theta_eq
+            return 0.5 * (ys[:, 2:] ** 2 @ self.inertia + np.einsum('ni,ij,nj->n', delta, h,
+                                                                     delta))
+        return excess
 
 
 def _beside_quasi_static(track, final_theta):
@@ -203,11 +214,11 @@ def _summary(system, solution, history, events, rest, track):
     summary.update(transient.figures(
         history.t, lambda t: solution(t).T[:, :2], lambda t: solution(t).T[:, 2:],
         lambda t: system.actuator_force(t, solution(t).T)[:, None], onset, rest,
-        ramp.duration))
+        ramp.duration, energy=None if rest is None else (lambda t: rest.excess(t, solution(t).T))))
     theta, speed = history.theta[-1], history.theta_dot[-1]
     summary['final'] = {'theta1': float(_wrap(theta[0])), 'theta2': float(_wrap(theta[1])),
                         'speed': float(np.max(np.abs(speed)))}
-    summary.update(_beside_quasi_static(track, rest if rest is not None else theta))
+    summary.update(_beside_quasi_static(track, rest.theta if rest is not None else theta))
     return summary
 
 

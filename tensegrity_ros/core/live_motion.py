@@ -175,11 +175,17 @@ class LiveMotion:
             return evaluate
 
         ts = transient.sample_times(solution)
+        last_t0, last = segments[-1]
+        held_from = max(last_t0 + last.ramp.duration, record['onset'])
+
+        def energy(t):
+            return rest.excess(t - last_t0, solution(t).T)
+
         report = {'onset_rho': record['rho'], 'onset_time': record['onset']}
         report.update(transient.figures(
             ts, by_segment(lambda s, t, y: self._readings(s, t, y)[0]),
             by_segment(lambda s, t, y: self._readings(s, t, y)[1]),
-            by_segment(self._forces), record['onset'], rest, record['onset']))
+            by_segment(self._forces), record['onset'], rest, held_from, energy=energy))
         report['final'] = self.final_state()
         return report
 

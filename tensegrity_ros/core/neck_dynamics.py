@@ -23,13 +23,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.integrate import OdeSolution
-from scipy.linalg import null_space
+from scipy.linalg import eigh, null_space
 
 from . import transient
 from .module import InvalidParameterError
 from .stack import Stack, StackTrack, settle_stack, track_stack
-from .transient import (ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, RhoRamp, SnapHistory,
-                        SolverSettings, wrap)
+from .transient import (ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, Rest, RhoRamp,
+                        SnapHistory, SolverSettings, imperfection_torque, wrap)
 
 #: Baumgarte stabilisation rate (1/s) of the length constraints.
 BAUMGARTE = 20.0
@@ -89,6 +89,7 @@ class NeckEquations:
         self.loads = loads.ravel()
         self.springs, self.rigid = springs, rigid
         self.chord_rows = [j for j, r in enumerate(rigid) if r[3] is not None]
+        self.imperfection = imperfection_torque(start.modules[0])    # on rod A1A3 of module 0
         # index arrays: the right-hand side runs on whole arrays, not per module
         self._frame_nodes = tuple(np.array(a) for a in (a1, a2, a3, a4))
         self._spring_ends = (np.array([a for a, _, _ in springs]),
@@ -182,6 +183,8 @@ class NeckEquations:
         gamma = (-2.0 * np.einsum('ij,ij->i', dv, dv) + 2.0 * rate ** 2
                  - 2.0 * BAUMGARTE * phi_dot - BAUMGARTE ** 2 * phi)
         force = self.forces(x, v, jac)
+        rod = x[2] - x[0]                       # the imperfection: a torque on A1(0)A3(0)
+        force[4:6] += self.imperfection / (rod @ rod) * np.array([-rod[1], rod[0]])
         k, m = 4 * self.n, len(self.rigid)
         system = np.zeros((k + m, k + m))
         system[:k, :k] = self.mass
@@ -244,35 +247,57 @@ class NeckEquations:
         y[4 * self.n:] = particular + basis @ z
         return y
 
-    def potential(self, x):
-        """U (J) in extended precision (rest is decided on differences of 1e-12 J)."""
-        x = np.asarray(x, dtype=np.longdouble)
-        u = -np.sum(self.loads.astype(np.longdouble) * x.ravel())
+    def _multipliers(self, nodes):
+        """The length constraints' multipliers lambda at an equilibrium ``nodes``:
+        grad U = lambda . grad(|d|^2 - l^2) on the free coordinates."""
+        zero = np.zeros_like(nodes)
+        rows, _, _ = self.constraint_rows(nodes, zero)
+        gradient = -self.forces(nodes, zero, np.zeros((2 * self.n, 2 * self.nodes)))
+        return np.linalg.lstsq(rows[:, 4:].T, gradient[4:], rcond=None)[0]
+
+    def rest_stiffness(self, nodes):
+        """The Hessian of L = U - lambda . (|d|^2 - l^2) (the equilibrium ``nodes``'
+        multipliers) on the free node coordinates: constant, L being quadratic in them."""
+        laplacian = np.zeros((self.nodes, self.nodes))
+        pair = np.array([[1.0, -1.0], [-1.0, 1.0]])
         for a, b, k in self.springs:
-            d = x[a] - x[b]
-            u += 0.5 * k * (d @ d)
-        return u
+            laplacian[np.ix_([a, b], [a, b])] += k * pair
+        for (a, b, _, _), value in zip(self.rigid, self._multipliers(nodes)):
+            laplacian[np.ix_([a, b], [a, b])] -= 2.0 * value * pair
+        return np.kron(laplacian, np.eye(2))[4:, 4:]
 
-    def _lagrangian_at(self, nodes, rho):
-        """U - lambda . (|d|^2 - l^2) with the multipliers of the equilibrium ``nodes``:
-        stationary there in every direction, so that a drift of the rigid lengths (the
-        Baumgarte-stabilised constraints hold to ~1e-10 m only) changes it to second
-        order, not by the chord forces times the drift."""
-        rows, _, _ = self.constraint_rows(nodes, np.zeros_like(nodes))
-        gradient = -self.forces(nodes, np.zeros_like(nodes), np.zeros((2 * self.n, 2 * self.nodes)))
-        lam = np.linalg.lstsq(rows[:, 4:].T, gradient[4:], rcond=None)[0]
-        length = np.asarray(self.lengths(rho, np.zeros_like(rho))[0], dtype=np.longdouble)
+    def excess_energy(self, nodes, stiffness):
+        """Energy (J) above the equilibrium ``nodes`` of states (n, 8N) while rho is held:
+        kinetic energy plus L(x) - L(x*) (``stiffness``: :meth:`rest_stiffness`).  L is
+        quadratic in the node coordinates and stationary at x*, so that is exactly
+        1/2 dx' H_L dx: no cancellation of large energies, and a drift of the rigid
+        lengths (the Baumgarte-stabilised constraints hold to ~1e-10 m only) enters to
+        second order, not times the chord forces."""
+        rest, k = nodes[2:].ravel(), 4 * self.n
 
-        def lagrangian(x):
-            x = np.asarray(x, dtype=np.longdouble)
-            d = np.array([x[a] - x[b] for a, b, _, _ in self.rigid])
-            return self.potential(x) - np.sum(lam.astype(np.longdouble) * (
-                np.sum(d * d, axis=1) - length ** 2))
-        return lagrangian
+        def excess(t, ys):
+            delta, v = ys[:, :k] - rest, ys[:, k:]
+            return 0.5 * (np.einsum('ni,ij,nj->n', v, self.mass, v)
+                          + np.einsum('ni,ij,nj->n', delta, stiffness, delta))
+        return excess
+
+    def rest_threshold(self, nodes, stiffness):
+        """1/2 SETTLE_TOLERANCE^2 min(h, mu): h and mu the smallest stiffness and inertia
+        per unit local angle on the constraints' tangent space at ``nodes``, so that an
+        energy below it keeps every angle within the tolerance and every rate below it
+        (the module's rule, :meth:`.dynamics.ModuleEquations.settled`, in the same units)."""
+        zero = np.zeros_like(nodes)
+        basis = null_space(self.constraint_rows(nodes, zero)[0][:, 4:])
+        along = self.angle_jacobian(nodes)[1][:, 4:] @ basis       # node motion -> angles
+        metric = along.T @ along
+        h = eigh(basis.T @ stiffness @ basis, metric, eigvals_only=True)[0]
+        mu = eigh(basis.T @ self.mass @ basis, metric, eigvals_only=True)[0]
+        return 0.5 * SETTLE_TOLERANCE ** 2 * min(h, mu)
 
     def settled(self, y):
-        """Rest angles if the damped energy above the nearby minimum is below the least
-        energy of any state outside the tolerance box (linearised), else None."""
+        """The :class:`~.transient.Rest` if the damped energy above the nearby minimum is
+        below the least energy of any state outside the tolerance box (linearised), else
+        None."""
         if not np.any(self.damping > 0.0):
             return None
         t_end = self.ramp.duration
@@ -284,14 +309,10 @@ class NeckEquations:
             eq = settle_stack(end, angles.reshape(self.n, 2))
         except (RuntimeError, ValueError):
             return None
-        x, v, rho, _ = self.full(t_end, y)
-        kinetic = 0.5 * v.ravel()[4:] @ self.mass @ v.ravel()[4:]
-        lagrangian = self._lagrangian_at(eq.nodes, rho)
-        excess = float(lagrangian(x) - lagrangian(eq.nodes)) + kinetic
-        stiffness = min(float(eq.eigenvalues[0]), float(np.linalg.eigvalsh(self.mass)[0]))
-        shortest = min(min(m.L1, m.L2) for m in self.modules)
-        floor = 0.5 * stiffness * (0.5 * SETTLE_TOLERANCE * shortest) ** 2
-        return eq.theta.ravel() if excess < 0.5 * floor else None
+        stiffness = self.rest_stiffness(eq.nodes)
+        rest = Rest(theta=eq.theta.ravel(), excess=self.excess_energy(eq.nodes, stiffness),
+                    threshold=self.rest_threshold(eq.nodes, stiffness))
+        return rest if rest.excess(None, y[None, :])[0] < rest.threshold else None
 
 
 def damping_vector(damping, n):
@@ -335,12 +356,13 @@ def simulate_neck_snap(stack: Stack, rho_end, rate: float, damping: float, theta
     onset = min(events) if events else None
     summary = {'onset_rho': None if onset is None else ramp.rho(onset).tolist(),
                'onset_time': onset}
-    summary.update(transient.figures(ts, reader.angles, reader.rates, reader.forces, onset,
-                                     rest, ramp.duration))
+    summary.update(transient.figures(
+        ts, reader.angles, reader.rates, reader.forces, onset, rest, ramp.duration,
+        energy=None if rest is None else (lambda t: rest.excess(t, solution(t).T))))
     summary['final'] = {'theta': theta[-1].reshape(shape[1:]).tolist(),
                         'speed': float(np.max(np.abs(omega[-1])))}
     track = track_stack(stack, end, start)
-    summary.update(_beside_quasi_static(track, rest if rest is not None else theta[-1]))
+    summary.update(_beside_quasi_static(track, rest.theta if rest is not None else theta[-1]))
     return NeckSnap(history=history, summary=summary, quasi_static=track, solution=solution)
 
 

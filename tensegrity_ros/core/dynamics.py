@@ -55,9 +55,12 @@ class Snap:
 
 
 class ModuleEquations:
-    """The equations of motion of one module along a rho ramp."""
+    """The equations of motion of one module along a rho ramp.  ``extend_ramp``: the
+    right-hand side continues the ramp at its rate past its end instead of holding (a live
+    segment ends there; its integrator may step past the end only to interpolate)."""
 
-    def __init__(self, params: ModuleParams, ramp: RhoRamp, damping: float):
+    def __init__(self, params: ModuleParams, ramp: RhoRamp, damping: float,
+                 extend_ramp=False):
         if params.m1 <= 0.0 or params.m2 <= 0.0:
             raise InvalidParameterError(
                 f'dynamics needs positive rod masses, got m1={params.m1!r}, m2={params.m2!r}')
@@ -67,14 +70,35 @@ class ModuleEquations:
         self.ramp = ramp
         self.damping = transient.checked_damping(damping)
         self.inertia = np.array([params.m1 * params.L1 ** 2, params.m2 * params.L2 ** 2]) / 3.0
+        self.extend_ramp = extend_ramp
         # the built-in imperfection (transient.IMPERFECTION) on rod 1
         self.imperfection = np.array([imperfection_torque(params), 0.0])
+        self._constants = self._for_rhs(params, ramp)
+
+    def _for_rhs(self, params, ramp):
+        """The right-hand side's constants as floats: it runs some 2000 times per simulated
+        second, so it is scalar arithmetic (a numpy call on two numbers costs more than
+        the arithmetic)."""
+        p = params
+        rho0, rho1 = float(ramp.rho0), float(ramp.rho1)
+        held_from = math.inf if self.extend_ramp else float(ramp.duration)
+        return (rho0, rho1 - rho0, float(ramp.duration), held_from, p.L1 * (p.ka + p.kc),
+                p.L2 * (p.kb + p.kc), p.kc * p.L1 * p.L2, p.L1 * p.f3x, p.L1 * p.f3y_total,
+                p.L2 * p.f4x, p.L2 * p.f4y_total, float(self.imperfection[0]),
+                self.damping, 1.0 / float(self.inertia[0]), 1.0 / float(self.inertia[1]))
 
     def rhs(self, t, y):
-        """(theta', theta'') at time t."""
-        grad = self.path.residual(y[:2], self.ramp.fraction(t))
-        acc = (self.imperfection - grad - self.damping * y[2:]) / self.inertia
-        return np.array([y[2], y[3], acc[0], acc[1]])
+        """(theta', theta'') at time t: I theta'' = -dU/dtheta - c theta' (+ the imperfection)."""
+        (rho0, drho, duration, held_from, a1, a2, kc12, f3x, f3y, f4x, f4y, tau, c, inv1,
+         inv2) = self._constants
+        rho = rho0 + drho if duration == 0.0 or t >= held_from else (
+            rho0 + drho * max(t, 0.0) / duration)
+        t1, t2, w1, w2 = y[0], y[1], y[2], y[3]
+        s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
+        s12 = s1 * c2 + c1 * s2
+        g1 = a1 * rho * s1 - kc12 * s12 + f3x * s1 - f3y * c1
+        g2 = a2 * rho * s2 - kc12 * s12 - f4x * s2 - f4y * c2
+        return np.array([w1, w2, (tau - g1 - c * w1) * inv1, (-g2 - c * w2) * inv2])
 
     def gradient(self, t, theta):
         """dU/dtheta at samples (t, theta): vectorised on the hold, per sample on the ramp."""
@@ -129,6 +153,20 @@ class ModuleEquations:
 
         return [rod1, rod2]
 
+    def rest_candidate(self, y):
+        """The :class:`~.transient.Rest` of the equilibrium a slow state (|theta'| below
+        1e-3 rad/s) is settling to, or None (fast, undamped, or no equilibrium found)."""
+        if self.damping == 0.0 or np.max(np.abs(y[2:])) > 1e-3:
+            return None
+        try:
+            eq = settle(self.end, y[:2])
+        except (RuntimeError, ValueError):
+            return None
+        theta_eq = eq.theta + 2.0 * math.pi * np.round((y[:2] - eq.theta) / (2.0 * math.pi))
+        return Rest(theta=theta_eq, excess=self.excess_energy(theta_eq),
+                    threshold=0.5 * min(float(np.min(eq.eigenvalues)),
+                                        float(np.min(self.inertia))) * SETTLE_TOLERANCE ** 2)
+
     def settled(self, y):
         """The :class:`~.transient.Rest` if the state is trapped within SETTLE_TOLERANCE for
         good, else None.
@@ -138,17 +176,8 @@ class ModuleEquations:
         smallest of the Hessian's eigenvalues and the inertias, times tol^2), the
         motion stays in the box for good.
         """
-        if self.damping == 0.0 or np.max(np.abs(y[2:])) > 1e-3:
-            return None
-        try:
-            eq = settle(self.end, y[:2])
-        except (RuntimeError, ValueError):
-            return None
-        theta_eq = eq.theta + 2.0 * math.pi * np.round((y[:2] - eq.theta) / (2.0 * math.pi))
-        rest = Rest(theta=theta_eq, excess=self.excess_energy(theta_eq),
-                    threshold=0.5 * min(float(np.min(eq.eigenvalues)),
-                                        float(np.min(self.inertia))) * SETTLE_TOLERANCE ** 2)
-        return rest if rest.excess(None, y[None, :])[0] < rest.threshold else None
+        rest = self.rest_candidate(y)
+        return transient.trapped(rest, y)
 
     def excess_energy(self, theta_eq):
         """Energy (J) above the minimum ``theta_eq`` at rho1 of states (n, 4): kinetic plus

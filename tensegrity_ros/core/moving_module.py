@@ -84,7 +84,8 @@ class MovingModule(LiveMotion):
 
     def _equations(self):
         return ModuleEquations(self.params.with_(rho=self.rho),
-                               RhoRamp(self.rho, self.target, self.max_rate), self.damping)
+                               RhoRamp(self.rho, self.target, self.max_rate), self.damping,
+                               extend_ramp=True)
 
     @staticmethod
     def _carried(old, t_local, y, new):

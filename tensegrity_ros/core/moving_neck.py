@@ -108,7 +108,7 @@ class MovingNeck(LiveMotion):
     def _equations(self):
         start = Stack(tuple(m.with_(rho=r) for m, r in zip(self.params.modules, self.rho)))
         return NeckEquations(start, RhoRamp(self.rho, self.target, self._ramp_rate()),
-                             self.damping)
+                             self.damping, extend_ramp=True)
 
     def _carried(self, old, t_local, y, new):
         """The nodes of the local angles now (rebuilt for the new design), with node

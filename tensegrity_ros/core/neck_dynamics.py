@@ -25,6 +25,7 @@ import numpy as np
 from scipy.integrate import OdeSolution
 from scipy.linalg import eigh, null_space
 
+from . import neck_kernel as _kernel
 from . import transient
 from .module import InvalidParameterError
 from .stack import Stack, StackTrack, settle_stack, track_stack
@@ -50,15 +51,20 @@ class NeckSnap:
 class NeckEquations:
     """Equations of motion of an N-module neck in node coordinates along a rho ramp.
 
-    ``damping`` is one pivot damping (N m s/rad) for every pivot, or one per module."""
+    ``damping`` is one pivot damping (N m s/rad) for every pivot, or one per module.
+    ``extend_ramp``: the right-hand side continues the ramp at its rate past its end
+    instead of holding (a live segment ends there; its integrator may step past the end
+    only to interpolate the state at it)."""
 
-    def __init__(self, start: Stack, ramp: RhoRamp, damping: float):
+    def __init__(self, start: Stack, ramp: RhoRamp, damping: float, extend_ramp=False):
         self.n = n = len(start)
+        self.extend_ramp = extend_ramp      # the right-hand side goes on at the ramp's rate
         for i, m in enumerate(start.modules):
             if m.m1 <= 0.0 or m.m2 <= 0.0:
                 raise InvalidParameterError(f'dynamics needs positive rod masses, got module '
                                             f'{i}: m1={m.m1!r}, m2={m.m2!r}')
         self.ramp = ramp
+        self.imperfection = imperfection_torque(start.modules[0])    # on rod A1A3 of module 0
         self.damping = damping_vector(damping, n)
         self.pivot_damping = np.repeat(self.damping, 2)      # one per local angle
         self.modules = start.modules
@@ -89,7 +95,6 @@ class NeckEquations:
         self.loads = loads.ravel()
         self.springs, self.rigid = springs, rigid
         self.chord_rows = [j for j, r in enumerate(rigid) if r[3] is not None]
-        self.imperfection = imperfection_torque(start.modules[0])    # on rod A1A3 of module 0
         # index arrays: the right-hand side runs on whole arrays, not per module
         self._frame_nodes = tuple(np.array(a) for a in (a1, a2, a3, a4))
         self._spring_ends = (np.array([a for a, _, _ in springs]),
@@ -98,6 +103,23 @@ class NeckEquations:
         self._rigid_ends = (np.array([a for a, _, _, _ in rigid]),
                             np.array([b for _, b, _, _ in rigid]))
         self._jacobian_layout()
+        self._kernel_args = self._for_the_kernel(loads)
+
+    def _for_the_kernel(self, loads):
+        """The arguments of :mod:`.neck_kernel`'s evaluations after (t, y), made once."""
+        contiguous = np.ascontiguousarray
+        return (self.n, contiguous(self.ramp.rho0, dtype=float),
+                contiguous(self.ramp.rho1, dtype=float),
+                -float(self.ramp.duration) if self.extend_ramp else float(self.ramp.duration),
+                contiguous(self.mass), contiguous(loads, dtype=float),
+                contiguous([[a, b] for a, b, _ in self.springs], dtype=np.int64),
+                contiguous(self._spring_k.ravel()),
+                contiguous(np.array(self._frame_nodes, dtype=np.int64)),
+                contiguous(self.damping, dtype=float), float(self.imperfection),
+                contiguous([[a, b] for a, b, _, _ in self.rigid], dtype=np.int64),
+                contiguous([0.0 if r[2] is None else r[2] for r in self.rigid], dtype=float),
+                contiguous([-1 if r[3] is None else r[3] for r in self.rigid], dtype=np.int64),
+                float(BAUMGARTE))
 
     # -- kinematics --------------------------------------------------------------------
     def full(self, t, y):
@@ -173,41 +195,31 @@ class NeckEquations:
         return f.ravel() - jac.T @ (self.pivot_damping * (jac @ v.ravel()))
 
     # -- the ODE -------------------------------------------------------------------------
-    def _solve(self, t, y):
-        x, v, rho, rho_dot = self.full(t, y)
-        _, jac = self.angle_jacobian(x)
-        rows, d, dv = self.constraint_rows(x, v)
-        length, rate = self.lengths(rho, rho_dot)
-        phi = np.einsum('ij,ij->i', d, d) - length ** 2
-        phi_dot = 2.0 * np.einsum('ij,ij->i', d, dv) - 2.0 * length * rate
-        gamma = (-2.0 * np.einsum('ij,ij->i', dv, dv) + 2.0 * rate ** 2
-                 - 2.0 * BAUMGARTE * phi_dot - BAUMGARTE ** 2 * phi)
-        force = self.forces(x, v, jac)
-        rod = x[2] - x[0]                       # the imperfection: a torque on A1(0)A3(0)
-        force[4:6] += self.imperfection / (rod @ rod) * np.array([-rod[1], rod[0]])
-        k, m = 4 * self.n, len(self.rigid)
-        system = np.zeros((k + m, k + m))
-        system[:k, :k] = self.mass
-        system[:k, k:] = -rows[:, 4:].T
-        system[k:, :k] = rows[:, 4:]
-        sol = np.linalg.solve(system, np.concatenate([force[4:], gamma]))
-        return sol[:k], sol[k:], x, v, rows, force
-
     def rhs(self, t, y):
-        acc = self._solve(t, y)[0]
-        return np.concatenate([y[4 * self.n:], acc])
+        """dy/dt (compiled: :func:`.neck_kernel.state_rate`)."""
+        return _kernel.state_rate(t, y, *self._kernel_args)
 
     def rates(self, t, y):
+        """Local angles (wrapped) and their rates (compiled)."""
+        n, rho0, rho1, duration = self._kernel_args[:4]
+        return _kernel.local_angles_and_rates(t, np.ascontiguousarray(y, dtype=float), n, rho0,
+                                              rho1, duration, self._kernel_args[8])
+
+    def rates_from_nodes(self, t, y):
+        """:meth:`rates` by the angle Jacobian (the reference of the compiled one)."""
         x, v, _, _ = self.full(t, y)
         angles, jac = self.angle_jacobian(x)
         return angles, jac @ v.ravel()
 
     def actuator_forces(self, t, y):
         """Module 0: the x reaction the actuator supplies at A2(0); above: 2 lambda l."""
-        acc, lam, x, v, rows, force = self._solve(t, y)
+        acc, lam, force = _kernel.accelerations(t, np.ascontiguousarray(y, dtype=float),
+                                                *self._kernel_args)
+        x, v, rho, rho_dot = self.full(t, y)
+        rows, _, _ = self.constraint_rows(x, v)
         q_ddot = np.concatenate([np.zeros(4), acc])
-        reaction = self.mass_to_free[2] @ q_ddot - force[2] - rows[:, 2] @ lam
-        length, _ = self.lengths(self.ramp.rho(t), self.ramp.rho_dot(t))
+        reaction = self.mass_to_free[2] @ q_ddot - force.ravel()[2] - rows[:, 2] @ lam
+        length, _ = self.lengths(rho, rho_dot)
         return np.concatenate([[reaction], 2.0 * lam[self.chord_rows] * length[self.chord_rows]])
 
     def onset_events(self):
@@ -294,10 +306,9 @@ class NeckEquations:
         mu = eigh(basis.T @ self.mass @ basis, metric, eigvals_only=True)[0]
         return 0.5 * SETTLE_TOLERANCE ** 2 * min(h, mu)
 
-    def settled(self, y):
-        """The :class:`~.transient.Rest` if the damped energy above the nearby minimum is
-        below the least energy of any state outside the tolerance box (linearised), else
-        None."""
+    def rest_candidate(self, y):
+        """The :class:`~.transient.Rest` of the equilibrium a slow state (local rates below
+        1e-3 rad/s, rho held) is settling to, or None (fast, undamped, none found)."""
         if not np.any(self.damping > 0.0):
             return None
         t_end = self.ramp.duration
@@ -310,9 +321,14 @@ class NeckEquations:
         except (RuntimeError, ValueError):
             return None
         stiffness = self.rest_stiffness(eq.nodes)
-        rest = Rest(theta=eq.theta.ravel(), excess=self.excess_energy(eq.nodes, stiffness),
+        return Rest(theta=eq.theta.ravel(), excess=self.excess_energy(eq.nodes, stiffness),
                     threshold=self.rest_threshold(eq.nodes, stiffness))
-        return rest if rest.excess(None, y[None, :])[0] < rest.threshold else None
+
+    def settled(self, y):
+        """The :class:`~.transient.Rest` if the damped energy above the nearby minimum is
+        below the least energy of any state outside the tolerance box (linearised), else
+        None."""
+        return transient.trapped(self.rest_candidate(y), y)
 
 
 def damping_vector(damping, n):

@@ -138,12 +138,22 @@ class SnapHistory:
 
 @dataclass(frozen=True)
 class SolverSettings:
-    """solve_ivp settings: tolerances that keep the reported figures to 0.1 %."""
+    """Integration settings: tolerances that keep the reported figures to 0.1 %.  Offline
+    transients use solve_ivp's ``method``; the live loop (:mod:`.live_motion`) VODE's
+    Adams method with the same tolerances, sampled every ``sample`` s."""
 
     method: str = 'DOP853'
     rtol: float = 1e-10
     atol: float = 1e-12
     chunk: float = 1.0          # s of hold between checks for "settled for good"
+    sample: float = 0.002       # s between the live loop's samples
+
+
+def trapped(rest, y):
+    """``rest`` if state ``y`` is below its threshold (trapped for good), else None."""
+    if rest is not None and rest.excess(None, np.asarray(y)[None, :])[0] < rest.threshold:
+        return rest
+    return None
 
 
 def checked_hold(hold):

@@ -143,6 +143,8 @@ class TensegrityNode(Node):
         self._counters.update(commands_processed=0, commands_coalesced=0,
                               callback_exceptions=0, jump_warnings=0,
                               tracking_failures=0, jumps_total=0, commands_deferred=0)
+        self._lag_max = 0.0                 # dynamics: largest lag (s) since the last report
+        self._reset_under_way = False       # a reset answered "under way", not yet done
         self._level_events = set()          # what happened since the last /diagnostics
         self._loggers = {}
         self._last_stable = None
@@ -151,6 +153,8 @@ class TensegrityNode(Node):
         self._names = self._declare_modules()
         self._declare_parameters()
         self._dynamics = self.get_parameter('dynamics').value
+        if self._dynamics:
+            self._counters['dynamics_behind_ticks'] = 0
         self._warn_unknown_overrides()
         self._sim = self._start_simulator()
         self._published_revision = None     # simulator revision of the last statuses
@@ -617,6 +621,7 @@ class TensegrityNode(Node):
             self._report(outcome)
             response.success = True
             if self._sim.pending:               # a long settle: it ends on later ticks
+                self._reset_under_way = True
                 response.message = ('reset under way: settling takes more than one tick; '
                                     'the state is published when it is reached')
             else:
@@ -688,6 +693,26 @@ class TensegrityNode(Node):
         self._level_events.add(event)
         self._throttled(event).warning(text, throttle_duration_sec=WARN_THROTTLE_SEC)
 
+    def _report_lag(self):
+        """Dynamics mode: a tick that ended with the simulation behind the clock is counted,
+        raises the node status to WARN and is logged (throttled); it catches up later."""
+        lag = self._sim.lag
+        if lag <= 0.0:
+            return
+        self._lag_max = max(self._lag_max, lag)
+        self._count_and_warn('dynamics_behind_ticks', 'behind', (
+            f'dynamics: the simulation is {lag:.3f} s behind the clock (it integrates at most '
+            f'{self._sim.time_budget * 1e3:g} ms per call); joint_states carry the time their '
+            f'state holds for; catching up'))
+
+    def _reset_done(self):
+        """A reset answered "under way" has settled: say so and publish the new state."""
+        self._reset_under_way = False
+        self._last_stable = None
+        self._publish_everything()
+        self.get_logger().info('reset done: ' + '; '.join(
+            self._describe_module(i) for i in range(len(self._names))))
+
     def _report_jump_ahead(self, warning):
         self._counters['jump_warnings'] += 1
         self._throttled('jump_ahead').warning(
@@ -714,7 +739,8 @@ class TensegrityNode(Node):
         self._on_markers_tick()
 
     def _publish_joint_states(self, now_ns=None):
-        """Publish the live state, stamped ``now_ns`` (the time it holds for) or now."""
+        """Publish the live state, stamped ``now_ns`` (the time it holds for) or now; in the
+        dynamics mode the time the integrated state holds for (earlier while it lags)."""
         js = self._js
         for i in range(len(self._names)):
             if self._dynamics:
@@ -724,7 +750,10 @@ class TensegrityNode(Node):
             else:
                 p, eq = self._sim.module(i)
                 js.set_module(i, p.rho, eq.theta1, eq.theta2, eq.actuator_force)
-        self._js_pub.publish(js.stamped(self._now_ns() if now_ns is None else now_ns))
+        stamp = self._now_ns() if now_ns is None else now_ns
+        if self._dynamics and self._sim.state_time_ns is not None:
+            stamp = min(stamp, self._sim.state_time_ns)
+        self._js_pub.publish(js.stamped(stamp))
 
     def _publish_statuses(self):
         """equilibrium of every module (all N together, in module order), and stable if
@@ -748,6 +777,10 @@ class TensegrityNode(Node):
     def _on_tick(self):
         now = self._now_ns()
         self._report(self._sim.advance(now))
+        if self._dynamics:
+            self._report_lag()
+        if self._reset_under_way and not self._sim.pending:
+            self._reset_done()
         self._publish_joint_states(now)
         self._publish_head_pose()
         self._publish_statuses_if_changed()
@@ -786,6 +819,9 @@ class TensegrityNode(Node):
                 parts.append('tracking failed')
             if 'deferred' in events:
                 parts.append('a command took more than one tick')
+            if 'behind' in events:
+                parts.append(f'the simulation fell behind the clock (up to '
+                             f'{self._lag_max:.3g} s)')
             level, message = conv.WARN, ', '.join(parts) + ' since the last report'
         else:
             level, message = conv.OK, 'ok'
@@ -795,6 +831,10 @@ class TensegrityNode(Node):
         counters['rejected_total'] = sum(v for k, v in counters.items()
                                          if k.startswith('rejected_'))
         node_status.values = conv.key_values(sorted(counters.items()))
+        if self._dynamics:
+            node_status.values += conv.key_values([('dynamics_lag', self._sim.lag),
+                                                   ('dynamics_lag_max', self._lag_max)])
+            self._lag_max = self._sim.lag
         self._publish_statuses_if_changed()
         msg = DiagnosticArray(status=[node_status] + self._last_statuses)
         msg.header.stamp = self._node_clock.now().to_msg()

@@ -48,7 +48,8 @@ class LiveMotion:
     ``target``, ``max_rate``, ``damping``), ``_carried(old, t_local, y, new)`` (the state
     across a segment boundary; ``old`` None: ``y`` is the ``start`` given, at rest),
     ``_readings(system, t_local, ys)`` (angles and rates of samples),
-    ``_forces(system, t_local, ys)``, ``_final(y)``, ``_checked_target(target)``,
+    ``_forces(system, t_local, ys)``, ``_fastest(system, t_local, y)`` (the largest
+    |theta'| of one state), ``_final(y)``, ``_checked_target(target)``,
     ``_checked_rate(rate)``, ``_checked_damping(damping)`` and ``_rho_of(array)``.
     """
 
@@ -66,6 +67,9 @@ class LiveMotion:
         self._rest = None              # the segment's Rest candidate (see _now_at_rest)
         self._queue = []               # (time, kind, values): changes not yet reached
         self._last_sample = None       # (t, y, segment) of the last sample taken
+        #: A verified equilibrium at the parameters held now (set by the caller; dropped at
+        #: any command or change): the rest is taken there if the rods come to rest by it.
+        self.rest_hint = None
         self._segment(self.t)
 
     @property
@@ -77,6 +81,16 @@ class LiveMotion:
     def _local(self):
         """Time since the current segment started."""
         return self.t - self._t0
+
+    def latest(self, name):
+        """``target``, ``params``, ``max_rate`` or ``damping`` as the last command or change
+        given sets it (queued ones included)."""
+        for _, kind, values in reversed(self._queue):
+            if name == 'target' and kind == 'target':
+                return values
+            if name != 'target' and kind == 'change' and values[name] is not None:
+                return values[name]
+        return getattr(self, name)
 
     # -- driving it ----------------------------------------------------------------------
     def command(self, rho_target, t, deadline=math.inf, clock=time.process_time):
@@ -146,6 +160,7 @@ class LiveMotion:
         """Apply every queued change whose time the integration has reached."""
         while self._due():
             _, kind, values = self._queue.pop(0)
+            self.rest_hint = None
             if kind == 'target':
                 if values != self.target:
                     self.target, self._at_rest = values, False
@@ -203,17 +218,15 @@ class LiveMotion:
             self.t, self.y = t_next, y.copy()
             self._sampled()
             if self.t < stop and clock() > deadline:
-                return False
+                break
         self.rho = self._rho_of(self._system.ramp.rho(self.t - self._t0))
-        return True
+        return self.t >= stop
 
     def _sampled(self):
         """Keep the sample; start a snap's record at the first sample past ONSET_SPEED."""
         sample = (self.t, self.y, self._system, self._t0)
         if self._record is None:
-            rates = self._readings(self._system, np.array([self.t - self._t0]),
-                                   self.y[None, :])[1]
-            if np.max(np.abs(rates)) > ONSET_SPEED:
+            if self._fastest(self._system, self.t - self._t0, self.y) > ONSET_SPEED:
                 self._record = _Record(self._last_sample, self._t0, self._system)
         if self._record is not None:
             self._record.add(sample)
@@ -227,7 +240,7 @@ class LiveMotion:
         if self._at_rest or self.rho != self.target:
             return False
         if self._rest is None:
-            self._rest = self._system.rest_candidate(self.y)
+            self._rest = self._system.rest_candidate(self.y, known=self.rest_hint)
             if self._rest is None:
                 return False
         t_local = np.array([self.t - self._t0])
@@ -242,6 +255,16 @@ class LiveMotion:
             return None
         self._record = None
         return record.figures(self, rest)
+
+    @property
+    def has_queued(self):
+        """True while a command or change waits for the integration to reach its time."""
+        return bool(self._queue)
+
+    @property
+    def rest(self):
+        """The :class:`~.transient.Rest` the rods are at (None while they move)."""
+        return self._rest if self._at_rest else None
 
     def final_state(self):
         """The state now as a summary's ``final`` (angles and the fastest rate)."""

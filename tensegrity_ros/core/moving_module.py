@@ -97,6 +97,10 @@ class MovingModule(LiveMotion):
         return ys[:, :2], ys[:, 2:]
 
     @staticmethod
+    def _fastest(system, t_local, y):
+        return max(abs(float(y[2])), abs(float(y[3])))
+
+    @staticmethod
     def _forces(system, t_local, ys):
         return system.actuator_force(t_local, ys)[:, None]
 

@@ -126,11 +126,15 @@ class MovingNeck(LiveMotion):
         return new.with_angle_rates(0.0, y, rates)
 
     def _readings(self, system, t_local, ys):
-        both = np.array([np.stack(system.rates(tk, yk)) for tk, yk in zip(t_local, ys)])
-        return both[:, 0], both[:, 1]
+        angles, rates, _ = system.readings(t_local, ys)
+        return angles, rates
+
+    @staticmethod
+    def _fastest(system, t_local, y):
+        return float(np.max(np.abs(system.rates(t_local, y)[1])))
 
     def _forces(self, system, t_local, ys):
-        return np.array([system.actuator_forces(tk, yk) for tk, yk in zip(t_local, ys)])
+        return system.readings(t_local, ys)[2]
 
     def _final(self, y):
         angles, rates = self._angles_and_rates()

@@ -104,6 +104,7 @@ class NeckEquations:
                             np.array([b for _, b, _, _ in rigid]))
         self._jacobian_layout()
         self._kernel_args = self._for_the_kernel(loads)
+        self._base_mass_row = np.ascontiguousarray(self.mass_to_free[2, 4:])
 
     def _for_the_kernel(self, loads):
         """The arguments of :mod:`.neck_kernel`'s evaluations after (t, y), made once."""
@@ -205,6 +206,13 @@ class NeckEquations:
         return _kernel.local_angles_and_rates(t, np.ascontiguousarray(y, dtype=float), n, rho0,
                                               rho1, duration, self._kernel_args[8])
 
+    def readings(self, t, ys):
+        """(local angles, rates, actuator forces) of states ``ys`` (k, 8N) at times ``t``
+        (k): every sample of a snap at once (compiled)."""
+        t = np.ascontiguousarray(np.broadcast_to(np.asarray(t, dtype=float), (len(ys),)))
+        return _kernel.readings(t, np.ascontiguousarray(ys, dtype=float), *self._kernel_args,
+                                self._base_mass_row)
+
     def rates_from_nodes(self, t, y):
         """:meth:`rates` by the angle Jacobian (the reference of the compiled one)."""
         x, v, _, _ = self.full(t, y)
@@ -212,15 +220,10 @@ class NeckEquations:
         return angles, jac @ v.ravel()
 
     def actuator_forces(self, t, y):
-        """Module 0: the x reaction the actuator supplies at A2(0); above: 2 lambda l."""
-        acc, lam, force = _kernel.accelerations(t, np.ascontiguousarray(y, dtype=float),
-                                                *self._kernel_args)
-        x, v, rho, rho_dot = self.full(t, y)
-        rows, _, _ = self.constraint_rows(x, v)
-        q_ddot = np.concatenate([np.zeros(4), acc])
-        reaction = self.mass_to_free[2] @ q_ddot - force.ravel()[2] - rows[:, 2] @ lam
-        length, _ = self.lengths(rho, rho_dot)
-        return np.concatenate([[reaction], 2.0 * lam[self.chord_rows] * length[self.chord_rows]])
+        """Module 0: the x force the actuator exerts on A2(0); above: 2 lambda l along the
+        chord (compiled: :func:`.neck_kernel.actuator_forces`)."""
+        return _kernel.actuator_forces(t, np.ascontiguousarray(y, dtype=float),
+                                       *self._kernel_args, self._base_mass_row)
 
     def onset_events(self):
         """One event: the fastest local angle rate crosses ONSET_SPEED (one evaluation of
@@ -306,23 +309,27 @@ class NeckEquations:
         mu = eigh(basis.T @ self.mass @ basis, metric, eigvals_only=True)[0]
         return 0.5 * SETTLE_TOLERANCE ** 2 * min(h, mu)
 
-    def rest_candidate(self, y):
+    def rest_candidate(self, y, known=None):
         """The :class:`~.transient.Rest` of the equilibrium a slow state (local rates below
-        1e-3 rad/s, rho held) is settling to, or None (fast, undamped, none found)."""
+        1e-3 rad/s, rho held) is settling to, or None (fast, undamped, none found).
+        ``known``: a verified equilibrium at rho1 taken if the state is within 1e-3 rad of
+        it (the quasi-static prediction: no second settle)."""
         if not np.any(self.damping > 0.0):
             return None
         t_end = self.ramp.duration
         angles, rates = self.rates(t_end, y)
         if np.max(np.abs(rates)) > 1e-3:
             return None
-        end = Stack(tuple(m.with_(rho=r) for m, r in zip(self.modules, self.ramp.rho1)))
-        try:
-            eq = settle_stack(end, angles.reshape(self.n, 2))
-        except (RuntimeError, ValueError):
-            return None
+        eq = known
+        if eq is None or np.max(np.abs(wrap(angles - np.ravel(eq.theta)))) > 1e-3:
+            end = Stack(tuple(m.with_(rho=r) for m, r in zip(self.modules, self.ramp.rho1)))
+            try:
+                eq = settle_stack(end, angles.reshape(self.n, 2))
+            except (RuntimeError, ValueError):
+                return None
         stiffness = self.rest_stiffness(eq.nodes)
         return Rest(theta=eq.theta.ravel(), excess=self.excess_energy(eq.nodes, stiffness),
-                    threshold=self.rest_threshold(eq.nodes, stiffness))
+                    threshold=self.rest_threshold(eq.nodes, stiffness), eq=eq)
 
     def settled(self, y):
         """The :class:`~.transient.Rest` if the damped energy above the nearby minimum is

@@ -166,6 +166,35 @@ def state_rate(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k, fr
 
 
 @njit(cache=True)
+def actuator_forces(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k, frames,
+                    damping, imperfection, rigid, rigid_length, rigid_chord, baumgarte,
+                    base_mass_row):
+    """Every actuator's force (N): module 0's, the x force it exerts on A2(0) (the slider
+    is massless: its share of the rods' inertia, minus the forces on A2(0)); an upper
+    module's, 2 lambda l along the chord that is its telescopic rod (positive pushes)."""
+    acc, lam, force = accelerations(t, y, n, rho0, rho1, duration, mass, loads, springs,
+                                    spring_k, frames, damping, imperfection, rigid,
+                                    rigid_length, rigid_chord, baumgarte)
+    rho, rate = ramp_at(t, rho0, rho1, duration)
+    x, v = node_table(y, n, rho[0], rate[0])
+    out = np.empty(n)
+    reaction = -force[1, 0]
+    for j in range(acc.shape[0]):
+        reaction += base_mass_row[j] * acc[j]
+    for e in range(rigid.shape[0]):
+        a, b = rigid[e, 0], rigid[e, 1]
+        if a == 1:
+            reaction -= 2.0 * (x[a, 0] - x[b, 0]) * lam[e]
+        elif b == 1:
+            reaction += 2.0 * (x[a, 0] - x[b, 0]) * lam[e]
+        chord = rigid_chord[e]
+        if chord >= 0:
+            out[chord] = 2.0 * lam[e] * rho[chord]
+    out[0] = reaction
+    return out
+
+
+@njit(cache=True)
 def local_angles_and_rates(t, y, n, rho0, rho1, duration, frames):
     """Every module's local angles (wrapped to [-pi, pi)) and their rates, 2N each."""
     rho, rate = ramp_at(t, rho0, rho1, duration)
@@ -188,6 +217,25 @@ def local_angles_and_rates(t, y, n, rho0, rho1, duration, frames):
     return angles, rates
 
 
+@njit(cache=True)
+def readings(ts, ys, n, rho0, rho1, duration, mass, loads, springs, spring_k, frames,
+             damping, imperfection, rigid, rigid_length, rigid_chord, baumgarte,
+             base_mass_row):
+    """Local angles, their rates and the actuator forces of many states ``ys`` at times
+    ``ts`` (the figures of a snap read every sample): (k, 2N), (k, 2N), (k, N)."""
+    k = ts.shape[0]
+    angles = np.empty((k, 2 * n))
+    rates = np.empty((k, 2 * n))
+    forces = np.empty((k, n))
+    for j in range(k):
+        y = np.ascontiguousarray(ys[j])
+        angles[j], rates[j] = local_angles_and_rates(ts[j], y, n, rho0, rho1, duration, frames)
+        forces[j] = actuator_forces(ts[j], y, n, rho0, rho1, duration, mass, loads, springs,
+                                    spring_k, frames, damping, imperfection, rigid,
+                                    rigid_length, rigid_chord, baumgarte, base_mass_row)
+    return angles, rates, forces
+
+
 def warm_up():
     """Compile (or load from numba's cache) every kernel now, not inside a timed call."""
     n = 1
@@ -196,5 +244,16 @@ def warm_up():
                np.zeros((1, 2), dtype=np.int64), np.zeros(1), np.array([[0], [1], [2], [3]]),
                np.zeros(1), 0.0, np.array([[2, 0], [3, 1]]), np.ones(2),
                np.array([-1, -1]), 20.0)
+    actuator_forces(0.0, np.array([1.0, 1.0, 2.0, 1.0, 0.0, 0.0, 0.0, 0.0]), n,
+                    np.ones(1), np.ones(1), 0.0, np.eye(4), np.zeros((4, 2)),
+                    np.zeros((1, 2), dtype=np.int64), np.zeros(1),
+                    np.array([[0], [1], [2], [3]]), np.zeros(1), 0.0,
+                    np.array([[2, 0], [3, 1]]), np.ones(2), np.array([-1, -1]), 20.0,
+                    np.zeros(4))
     local_angles_and_rates(0.0, np.array([1.0, 1.0, 2.0, 1.0, 0.0, 0.0, 0.0, 0.0]), 1,
                            np.ones(1), np.ones(1), 0.0, np.array([[0], [1], [2], [3]]))
+    readings(np.zeros(1), np.array([[1.0, 1.0, 2.0, 1.0, 0.0, 0.0, 0.0, 0.0]]), n,
+             np.ones(1), np.ones(1), 0.0, np.eye(4), np.zeros((4, 2)),
+             np.zeros((1, 2), dtype=np.int64), np.zeros(1), np.array([[0], [1], [2], [3]]),
+             np.zeros(1), 0.0, np.array([[2, 0], [3, 1]]), np.ones(2), np.array([-1, -1]),
+             20.0, np.zeros(4))

@@ -63,11 +63,12 @@ class Rest:
     state it was found from), ``excess(t, ys)`` the mechanical energy (J) above that
     minimum of states ``ys`` (shape (n, state size)) at segment times ``t`` while rho is
     held, and ``threshold`` (J): below it the state is trapped within SETTLE_TOLERANCE
-    of ``theta`` for good."""
+    of ``theta`` for good; ``eq`` the verified equilibrium it was found as."""
 
     theta: np.ndarray
     excess: object = field(repr=False)
     threshold: float
+    eq: object = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ from .live_motion import LiveMotion
 from .moving_module import checked_rate
 from .module import InvalidParameterError
 from .neck_dynamics import NeckEquations, damping_vector
+from .neck_kernel import warm_up
 from .stack import Stack, StackPath, settle_stack
 from .transient import RhoRamp, SolverSettings
 
@@ -31,6 +32,7 @@ class MovingNeck(LiveMotion):
     def __init__(self, stack: Stack, theta_guess, damping, max_rate, t: float = 0.0,
                  settings: SolverSettings = SolverSettings()):
         self.n = len(stack)
+        warm_up()                                   # the compiled equations, now
         start = settle_stack(stack, theta_guess)
         super().__init__(stack, tuple(float(m.rho) for m in stack.modules), start, damping,
                          max_rate, t, settings)

@@ -209,7 +209,7 @@ class NeckEquations:
     def readings(self, t, ys):
         """(local angles, rates, actuator forces) of states ``ys`` (k, 8N) at times ``t``
         (k): every sample of a snap at once (compiled)."""
-        t = np.ascontiguousarray(np.broadcast_to(np.asarray(t, dtype=float), (len(ys),)))
+        t = np.full(len(ys), float(t)) if np.ndim(t) == 0 else np.array(t, dtype=float)
         return _kernel.readings(t, np.ascontiguousarray(ys, dtype=float), *self._kernel_args,
                                 self._base_mass_row)
 

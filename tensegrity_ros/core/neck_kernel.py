@@ -236,8 +236,15 @@ def readings(ts, ys, n, rho0, rho1, duration, mass, loads, springs, spring_k, fr
     return angles, rates, forces
 
 
+_WARM = []
+
+
 def warm_up():
-    """Compile (or load from numba's cache) every kernel now, not inside a timed call."""
+    """Compile (or load from numba's cache) every kernel now, not inside a timed call
+    (the first use in a process costs ~1 s; later ones nothing)."""
+    if _WARM:
+        return
+    _WARM.append(True)
     n = 1
     state_rate(0.0, np.array([1.0, 1.0, 2.0, 1.0, 0.0, 0.0, 0.0, 0.0]), n,
                np.ones(1), np.ones(1), 0.0, np.eye(4), np.zeros((4, 2)),

@@ -86,14 +86,17 @@ class _Arrival:
     """Rods that came to rest, being verified (settled where they rest) and compared with
     the quasi-static prediction, each a Job run in the calls' time budgets."""
 
-    __slots__ = ('start', 'start_state', 'end', 'report', 'cause', 'trigger', 'settling',
+    __slots__ = ('start', 'start_state', 'end', 'reporting', 'cause', 'trigger', 'settling',
                  'predicting')
 
-    def __init__(self, start, start_state, end, report, cause, trigger, settling,
+    def __init__(self, start, start_state, end, reporting, cause, trigger, settling,
                  predicting):
-        self.start, self.start_state, self.end, self.report = start, start_state, end, report
+        self.start, self.start_state, self.end = start, start_state, end
         self.cause, self.trigger = cause, trigger
-        self.settling, self.predicting = settling, predicting
+        self.reporting, self.settling, self.predicting = reporting, settling, predicting
+
+    def jobs(self):
+        return self.reporting, self.settling, self.predicting
 
 
 class DynamicSimulator(Simulator):
@@ -323,6 +326,7 @@ class DynamicSimulator(Simulator):
                                             rates[0])
             else:
                 self._moving = MovingNeck(Stack(self.modules), thetas, self._damping, rates)
+            self._moving.lazy_reports = True    # worked off in the calls' budgets
             self._epoch_ns, self._in_motion, self.lag = None, False, 0.0
         return outcome
 
@@ -335,8 +339,7 @@ class DynamicSimulator(Simulator):
         if self._forecast is not None:
             yield self._forecast.job
         if self._arrival is not None:
-            yield self._arrival.settling
-            yield self._arrival.predicting
+            yield from self._arrival.jobs()
 
     def _packed(self, values):
         """Per-module values as the moving mechanism takes them (one module: a float)."""
@@ -431,7 +434,8 @@ class DynamicSimulator(Simulator):
     # -- coming to rest ---------------------------------------------------------------------
 
     def _arrive(self, report):
-        """The rods came to rest: verify the rest state and predict, in Jobs."""
+        """The rods came to rest: the snap's figures (``report``, a function computing
+        them, or None), the verification of the rest state and the prediction, in Jobs."""
         m = self._moving
         end = tuple(p.with_(rho=r) for p, r in zip(self._latest_modules(), _per_module(m.rho)))
         thetas = np.reshape(m.theta, (-1, 2)).copy()
@@ -445,16 +449,16 @@ class DynamicSimulator(Simulator):
         else:
             predicting = Job(functools.partial(self._mechanism.track, self.modules, end,
                                                self.state), self._clock)
-        self._arrival = _Arrival(self.modules, self.state, end,
-                                 report or self._creep_report(), self._cause, self._trigger,
-                                 settling, predicting)
+        creep = self._creep_report()
+        reporting = Job(report if report is not None else (lambda: creep), self._clock)
+        self._arrival = _Arrival(self.modules, self.state, end, reporting, self._cause,
+                                 self._trigger, settling, predicting)
 
     def _arrival_outcome(self):
         """Work on the rest's verification and prediction; once both are done, the rest
         state becomes the verified state and a snap on the way is a Jump."""
         arrival = self._arrival
-        if arrival is None or not arrival.settling.run(self._deadline) \
-                or not arrival.predicting.run(self._deadline):
+        if arrival is None or not all(job.run(self._deadline) for job in arrival.jobs()):
             return Outcome()
         self._arrival = None
         try:
@@ -487,7 +491,7 @@ class DynamicSimulator(Simulator):
         """A Jump for a snap that came to rest, with the quasi-static prediction of the
         same change (``motion``, or None if the tracker failed) beside it; None if the rods
         only moved fast along their branch."""
-        report, start = arrival.report, arrival.start
+        report, start = arrival.reporting.result(), arrival.start
         predicted = raw = None
         if motion is not None:
             predicted = np.reshape(np.asarray(motion.final.theta, dtype=float), (-1, 2))

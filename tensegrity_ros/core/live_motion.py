@@ -26,6 +26,7 @@ before (DOP853, rtol 1e-12), so that they do not depend on the sample spacing.
 """
 from __future__ import annotations
 
+import functools
 import math
 import time
 
@@ -34,6 +35,7 @@ from scipy.integrate import ode, solve_ivp
 from scipy.optimize import brentq
 
 from . import transient
+from .bounded_work import checkpoint
 from .module import InvalidParameterError
 from .transient import ONSET_SPEED, SolverSettings
 
@@ -47,8 +49,9 @@ class LiveMotion:
     Subclass hooks: ``_equations()`` (the segment's equations from ``params``, ``rho``,
     ``target``, ``max_rate``, ``damping``), ``_carried(old, t_local, y, new)`` (the state
     across a segment boundary; ``old`` None: ``y`` is the ``start`` given, at rest),
-    ``_readings(system, t_local, ys)`` (angles and rates of samples),
-    ``_forces(system, t_local, ys)``, ``_fastest(system, t_local, y)`` (the largest
+    ``_all_readings(system, t_local, ys)`` (angles, rates and actuator forces of samples,
+    2-d arrays), ``_reading_splits()`` (where they part when stacked side by side),
+    ``_fastest(system, t_local, y)`` (the largest
     |theta'| of one state), ``_final(y)``, ``_checked_target(target)``,
     ``_checked_rate(rate)``, ``_checked_damping(damping)`` and ``_rho_of(array)``.
     """
@@ -70,6 +73,9 @@ class LiveMotion:
         #: A verified equilibrium at the parameters held now (set by the caller; dropped at
         #: any command or change): the rest is taken there if the rods come to rest by it.
         self.rest_hint = None
+        #: advance() returns a snap's figures as a function of no arguments that computes
+        #: them (a caller that bounds its work runs it in slices: it has check points).
+        self.lazy_reports = False
         self._segment(self.t)
 
     @property
@@ -249,12 +255,14 @@ class LiveMotion:
         return self._at_rest
 
     def _rest_report(self):
-        """The figures of the snap that has just come to rest (None if nothing snapped)."""
+        """The figures of the snap that has just come to rest (None if nothing snapped);
+        with ``lazy_reports`` the function that computes them."""
         record, rest = self._record, self._rest
         if record is None:
             return None
         self._record = None
-        return record.figures(self, rest)
+        report = functools.partial(record.figures, self, rest, self.final_state())
+        return report if self.lazy_reports else report()
 
     @property
     def has_queued(self):
@@ -294,10 +302,11 @@ class _Record:
             self._dense[k] = found
         return found
 
-    def reader(self, read):
+    def reader(self, read, at_samples=None):
         """f(t array) -> read(system, t_local, ys) rows: the samples at sample times, a
         dense re-integration from the sample before anywhere else; one call of ``read``
-        per segment."""
+        per segment.  ``at_samples``: the rows at every sample, computed once, returned
+        when f is asked for exactly the sample times."""
         times = np.array([s[0] for s in self.samples])
         states = np.array([s[1] for s in self.samples])
         segment_of = {}
@@ -305,7 +314,10 @@ class _Record:
                           for s in self.samples])
 
         def evaluate(t):
+            checkpoint()                    # the figures may be worked off in slices
             t = np.atleast_1d(np.asarray(t, dtype=float))
+            if at_samples is not None and t.shape == times.shape and np.array_equal(t, times):
+                return at_samples
             k = np.clip(np.searchsorted(times, t, 'right') - 1, 0, len(times) - 1)
             ys = states[k].copy()
             for j in np.flatnonzero((times[k] != t) & (k + 1 < len(times))):
@@ -321,10 +333,13 @@ class _Record:
             return rows
         return evaluate
 
-    def figures(self, motion, rest):
-        """The snap's figures (the keys of the offline summaries)."""
+    def figures(self, motion, rest, final):
+        """The snap's figures (the keys of the offline summaries); ``final`` the state at
+        rest (:meth:`LiveMotion.final_state`)."""
         times = np.array([s[0] for s in self.samples])
-        rates = self.reader(lambda s, t, y: motion._readings(s, t, y)[1])
+        table = self.reader(lambda s, t, y: np.hstack(motion._all_readings(s, t, y)))(times)
+        angles_at, rates_at, forces_at = np.split(table, motion._reading_splits(), axis=1)
+        rates = self.reader(lambda s, t, y: motion._all_readings(s, t, y)[1], rates_at)
         onset = self._onset(rates, times)
         last_t0, last = self.segments[-1]
         held_from = max(last_t0 + last.ramp.duration, onset)
@@ -332,10 +347,10 @@ class _Record:
         system, t0 = self._system_at(onset)
         report = {'onset_rho': motion._rho_of(system.ramp.rho(onset - t0)), 'onset_time': onset}
         report.update(transient.figures(
-            times, self.reader(lambda s, t, y: motion._readings(s, t, y)[0]), rates,
-            self.reader(motion._forces), onset, rest, held_from,
-            energy=lambda t: rest.excess(t - last_t0, state(t))))
-        report['final'] = motion.final_state()
+            times, self.reader(lambda s, t, y: motion._all_readings(s, t, y)[0], angles_at),
+            rates, self.reader(lambda s, t, y: motion._all_readings(s, t, y)[2], forces_at),
+            onset, rest, held_from, energy=lambda t: rest.excess(t - last_t0, state(t))))
+        report['final'] = final
         return report
 
     def _system_at(self, t):

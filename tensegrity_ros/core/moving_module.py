@@ -93,16 +93,16 @@ class MovingModule(LiveMotion):
         return y
 
     @staticmethod
-    def _readings(system, t_local, ys):
-        return ys[:, :2], ys[:, 2:]
+    def _all_readings(system, t_local, ys):
+        return ys[:, :2], ys[:, 2:], system.actuator_force(t_local, ys)[:, None]
+
+    @staticmethod
+    def _reading_splits():
+        return [2, 4]
 
     @staticmethod
     def _fastest(system, t_local, y):
         return max(abs(float(y[2])), abs(float(y[3])))
-
-    @staticmethod
-    def _forces(system, t_local, ys):
-        return system.actuator_force(t_local, ys)[:, None]
 
     @staticmethod
     def _final(y):

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.integrate import OdeSolution
 from scipy.linalg import eigh, null_space
+from scipy.linalg.lapack import dgesv as _dgesv
 
 from . import neck_kernel as _kernel
 from . import transient
@@ -105,6 +106,8 @@ class NeckEquations:
         self._jacobian_layout()
         self._kernel_args = self._for_the_kernel(loads)
         self._base_mass_row = np.ascontiguousarray(self.mass_to_free[2, 4:])
+        self._compiled = _kernel.compiled()
+        self._for_numpy(loads)
 
     def _for_the_kernel(self, loads):
         """The arguments of :mod:`.neck_kernel`'s evaluations after (t, y), made once."""
@@ -127,7 +130,7 @@ class NeckEquations:
         """All node positions and velocities (nodes x 2 each) at time t."""
         x = np.empty((self.nodes, 2))
         v = np.zeros((self.nodes, 2))
-        rho, rho_dot = self.ramp.rho(t), self.ramp.rho_dot(t)
+        rho, rho_dot = self._ramp_now(t)
         x[0], x[1] = (0.0, 0.0), (rho[0], 0.0)
         v[1, 0] = rho_dot[0]
         k = 4 * self.n
@@ -196,34 +199,120 @@ class NeckEquations:
         return f.ravel() - jac.T @ (self.pivot_damping * (jac @ v.ravel()))
 
     # -- the ODE -------------------------------------------------------------------------
+    # Two evaluations of the same equations: compiled (:mod:`.neck_kernel`, numba) where
+    # it is installed, else numpy (``_solve``): the same numbers to rounding, the numpy one
+    # ~10 times slower per evaluation (see neck_kernel's docstring).
+
     def rhs(self, t, y):
-        """dy/dt (compiled: :func:`.neck_kernel.state_rate`)."""
-        return _kernel.state_rate(t, y, *self._kernel_args)
+        """dy/dt: (node velocities, node accelerations)."""
+        if self._compiled is not None:
+            return self._compiled.state_rate(t, y, *self._kernel_args)
+        return np.concatenate([y[4 * self.n:], self._solve(t, y)[0]])
 
     def rates(self, t, y):
-        """Local angles (wrapped) and their rates (compiled)."""
+        """Local angles (wrapped) and their rates."""
+        if self._compiled is None:
+            return self.rates_from_nodes(t, y)
         n, rho0, rho1, duration = self._kernel_args[:4]
-        return _kernel.local_angles_and_rates(t, np.ascontiguousarray(y, dtype=float), n, rho0,
-                                              rho1, duration, self._kernel_args[8])
+        return self._compiled.local_angles_and_rates(
+            t, np.ascontiguousarray(y, dtype=float), n, rho0, rho1, duration,
+            self._kernel_args[8])
 
     def readings(self, t, ys):
         """(local angles, rates, actuator forces) of states ``ys`` (k, 8N) at times ``t``
-        (k): every sample of a snap at once (compiled)."""
+        (k): every sample of a snap at once."""
         t = np.full(len(ys), float(t)) if np.ndim(t) == 0 else np.array(t, dtype=float)
-        return _kernel.readings(t, np.ascontiguousarray(ys, dtype=float), *self._kernel_args,
-                                self._base_mass_row)
+        ys = np.ascontiguousarray(ys, dtype=float)
+        if self._compiled is not None:
+            return self._compiled.readings(t, ys, *self._kernel_args, self._base_mass_row)
+        rows = [(*self.rates_from_nodes(tk, yk), self.actuator_forces(tk, yk))
+                for tk, yk in zip(t, ys)]
+        return tuple(np.array([row[j] for row in rows]) for j in range(3))
 
     def rates_from_nodes(self, t, y):
-        """:meth:`rates` by the angle Jacobian (the reference of the compiled one)."""
+        """:meth:`rates` by the angle Jacobian (numpy)."""
         x, v, _, _ = self.full(t, y)
         angles, jac = self.angle_jacobian(x)
         return angles, jac @ v.ravel()
 
     def actuator_forces(self, t, y):
         """Module 0: the x force the actuator exerts on A2(0); above: 2 lambda l along the
-        chord (compiled: :func:`.neck_kernel.actuator_forces`)."""
-        return _kernel.actuator_forces(t, np.ascontiguousarray(y, dtype=float),
-                                       *self._kernel_args, self._base_mass_row)
+        chord that is its telescopic rod (positive pushes apart), the rods' inertia in."""
+        if self._compiled is not None:
+            return self._compiled.actuator_forces(t, np.ascontiguousarray(y, dtype=float),
+                                                  *self._kernel_args, self._base_mass_row)
+        acc, lam, x, force, rho = self._solve(t, y)
+        a, b = self._rigid_ends
+        d_x = x[a, 0] - x[b, 0]
+        reaction = (self._base_mass_row @ acc - force[1, 0] - 2.0 * (d_x * (a == 1)) @ lam
+                    + 2.0 * (d_x * (b == 1)) @ lam)
+        chords = self.chord_rows
+        return np.concatenate([[reaction], 2.0 * lam[chords] * rho[self._rigid_chord[chords]]])
+
+    def _ramp_now(self, t):
+        """(rho, rho') of every actuator at t, as the right-hand side takes them (the ramp
+        extended past its end if ``extend_ramp``)."""
+        rho0, rho1, duration = self._kernel_args[1:4]
+        if duration == 0.0 or t >= duration > 0.0:
+            return rho1, np.zeros_like(rho1)
+        duration = abs(duration)
+        return rho0 + (max(t, 0.0) / duration) * (rho1 - rho0), (rho1 - rho0) / duration
+
+    def _solve(self, t, y):
+        """The equations in numpy: (free accelerations, multipliers, nodes, node forces,
+        rho) at (t, y); arrays made once, the KKT system solved by LAPACK's dgesv."""
+        rho, rate = self._ramp_now(t)
+        k = 4 * self.n
+        x, v = self._x, self._v
+        x[1, 0], v[1, 0] = rho[0], rate[0]
+        x[2:] = y[:k].reshape(-1, 2)
+        v[2:] = y[k:].reshape(-1, 2)
+        _, jac = self.angle_jacobian(x)
+        force = self._loads2 - self._laplacian @ x
+        force -= (jac.T @ (self.pivot_damping * (jac @ v.ravel()))).reshape(-1, 2)
+        rod = x[2] - x[0]
+        force[2] += self.imperfection / (rod @ rod) * np.array([-rod[1], rod[0]])
+        a, b = self._rigid_ends
+        d, dv = x[a] - x[b], v[a] - v[b]
+        chord = self._rigid_chord >= 0
+        length = np.where(chord, rho[self._rigid_chord], self._rigid_length)
+        length_rate = np.where(chord, rate[self._rigid_chord], 0.0)
+        phi = np.einsum('ij,ij->i', d, d) - length * length
+        phi_dot = 2.0 * np.einsum('ij,ij->i', d, dv) - 2.0 * length * length_rate
+        system = self._system
+        for (rows, cols, ends), sign in zip(self._kkt_blocks, (2.0, -2.0)):
+            values = sign * d[ends].ravel()
+            system[rows, cols] = values
+            system[cols, rows] = -values
+        rhs = np.concatenate([force.ravel()[4:],
+                              -2.0 * np.einsum('ij,ij->i', dv, dv) + 2.0 * length_rate ** 2
+                              - 2.0 * BAUMGARTE * phi_dot - BAUMGARTE ** 2 * phi])
+        _, _, solution, info = _dgesv(system, rhs)
+        if info != 0:
+            raise np.linalg.LinAlgError('singular KKT system of the neck')
+        return solution[:k], solution[k:], x.copy(), force, rho
+
+    def _for_numpy(self, loads):
+        """The numpy evaluation's constant arrays: node buffers, the spring Laplacian, the
+        KKT matrix with its mass block, where the constraint rows go in it."""
+        self._x, self._v = np.zeros((self.nodes, 2)), np.zeros((self.nodes, 2))
+        self._loads2 = np.asarray(loads, dtype=float).reshape(-1, 2)
+        laplacian = np.zeros((self.nodes, self.nodes))
+        for a, b, k in self.springs:
+            laplacian[np.ix_([a, b], [a, b])] += k * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        self._laplacian = laplacian
+        self._rigid_chord = np.array([-1 if r[3] is None else r[3] for r in self.rigid])
+        self._rigid_length = np.array([0.0 if r[2] is None else r[2] for r in self.rigid])
+        k, m = 4 * self.n, len(self.rigid)
+        self._system = np.zeros((k + m, k + m), order='F')
+        self._system[:k, :k] = self.mass
+        blocks = []
+        for ends in self._rigid_ends:
+            which = np.flatnonzero(ends >= 2)
+            rows = np.repeat(k + which, 2)
+            cols = (2 * (ends[which] - 2)[:, None] + np.arange(2)).ravel()
+            blocks.append((rows, cols, which))
+        self._kkt_blocks = blocks
 
     def onset_events(self):
         """One event: the fastest local angle rate crosses ONSET_SPEED (one evaluation of

@@ -1,6 +1,6 @@
 """The neck's equations of motion per evaluation, compiled (numba): the inner loop of a live
-neck, called some 4000 times per simulated second (see :mod:`.neck_dynamics` for the
-model; this file only evaluates it).
+neck, called some 2000-4000 times per simulated second (see :mod:`.neck_dynamics` for the
+model and its numpy evaluation; this file only evaluates it, loop by loop).
 
 Why compiled: the integrator calls the right-hand side once per stage, one small state at
 a time, so numpy's per-call overhead is the whole cost.  Measured on this project's
@@ -8,8 +8,14 @@ a time, so numpy's per-call overhead is the whole cost.  Measured on this projec
 1.1 us, ``np.linalg.solve`` 5 us (LAPACK's dgesv alone 1.7 us); the node-coordinate
 right-hand side in numpy 50-70 us, a reduced (rod-angle) one written for fewest numpy
 calls 46-57 us, and no arrangement of the ~60 array operations it needs below ~20 us.
-At ~4000 evaluations per simulated second of config/neck.yaml's snap that caps a live
-neck at a real-time factor of ~12; compiled, one evaluation takes ~2 us.
+At ~2000-4000 evaluations per simulated second of config/neck.yaml's snap that caps a
+live neck well below the real-time factor of 20 it needs; compiled, one evaluation takes
+~4 us.
+
+numba is imported only by :func:`compiled` (a live neck's first use): the quasi-static
+mode never loads it.  Without numba, or with ``TENSEGRITY_NO_NUMBA=1`` in the environment,
+:func:`compiled` returns None and :class:`.neck_dynamics.NeckEquations` evaluates the same
+equations with numpy (the same numbers to rounding, ~10 times slower).
 
 Node coordinates (as :class:`.neck_dynamics.NeckEquations`): the moving nodes' positions
 and velocities; A1(0) fixed at the origin, A2(0) at (rho0(t), 0).  Rigid lengths (rods;
@@ -18,11 +24,12 @@ at acceleration level with a Baumgarte term; the KKT system is solved by LAPACK.
 """
 from __future__ import annotations
 
+import os
+from types import SimpleNamespace
+
 import numpy as np
-from numba import njit
 
 
-@njit(cache=True)
 def ramp_at(t, rho0, rho1, duration):
     """(rho, rho') of every actuator at time t of a constant-rate ramp, then held.  A
     negative ``duration`` -D is the ramp of duration D extended beyond its end at the same
@@ -41,7 +48,6 @@ def ramp_at(t, rho0, rho1, duration):
     return rho, rate
 
 
-@njit(cache=True)
 def node_table(y, n, rho0, rho0_rate):
     """Node positions and velocities ((2 + 2N) x 2 each) of state y."""
     nodes = 2 + 2 * n
@@ -58,7 +64,6 @@ def node_table(y, n, rho0, rho0_rate):
     return x, v
 
 
-@njit(cache=True)
 def _add_pivot_damping(force, x, v, frames, damping):
     """force -= J^T c J v: viscous torques c theta' on every local angle (t1 of A1A3 from
     A1A2, t2 of A2A4 from -A1A2), as forces on the nodes that define the angles."""
@@ -94,7 +99,6 @@ def _add_pivot_damping(force, x, v, frames, damping):
         force[a2, 1] -= tau2 * p2y
 
 
-@njit(cache=True)
 def node_forces(x, v, loads, springs, spring_k, frames, damping, imperfection):
     """Springs, loads and weights, pivot damping and the built-in imperfection (a torque on
     rod A1(0)A3(0)) as forces on every node ((2 + 2N) x 2)."""
@@ -115,7 +119,6 @@ def node_forces(x, v, loads, springs, spring_k, frames, damping, imperfection):
     return force
 
 
-@njit(cache=True)
 def accelerations(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k, frames,
                   damping, imperfection, rigid, rigid_length, rigid_chord, baumgarte):
     """(free node accelerations (4N), multipliers of the rigid lengths, node forces)."""
@@ -151,7 +154,6 @@ def accelerations(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k,
     return solution[:k], solution[k:], force
 
 
-@njit(cache=True)
 def state_rate(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k, frames,
                damping, imperfection, rigid, rigid_length, rigid_chord, baumgarte):
     """dy/dt: (node velocities, node accelerations)."""
@@ -165,7 +167,6 @@ def state_rate(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k, fr
     return out
 
 
-@njit(cache=True)
 def actuator_forces(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k, frames,
                     damping, imperfection, rigid, rigid_length, rigid_chord, baumgarte,
                     base_mass_row):
@@ -194,7 +195,6 @@ def actuator_forces(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_
     return out
 
 
-@njit(cache=True)
 def local_angles_and_rates(t, y, n, rho0, rho1, duration, frames):
     """Every module's local angles (wrapped to [-pi, pi)) and their rates, 2N each."""
     rho, rate = ramp_at(t, rho0, rho1, duration)
@@ -217,7 +217,6 @@ def local_angles_and_rates(t, y, n, rho0, rho1, duration, frames):
     return angles, rates
 
 
-@njit(cache=True)
 def readings(ts, ys, n, rho0, rho1, duration, mass, loads, springs, spring_k, frames,
              damping, imperfection, rigid, rigid_length, rigid_chord, baumgarte,
              base_mass_row):
@@ -236,16 +235,46 @@ def readings(ts, ys, n, rho0, rho1, duration, mass, loads, springs, spring_k, fr
     return angles, rates, forces
 
 
-_WARM = []
+#: The kernels, callees first (numba compiles a caller against the callees it finds).
+KERNELS = ('ramp_at', 'node_table', '_add_pivot_damping', 'node_forces', 'accelerations',
+           'state_rate', 'actuator_forces', 'local_angles_and_rates', 'readings')
+_COMPILED = []
+
+
+def compiled():
+    """The kernels compiled by numba (its on-disk cache reused) as a namespace, made on the
+    first call, or None where numba is not installed or TENSEGRITY_NO_NUMBA is set."""
+    if not _COMPILED:
+        _COMPILED.append(_compile())
+    return _COMPILED[0]
+
+
+def _compile():
+    if os.environ.get('TENSEGRITY_NO_NUMBA', '') not in ('', '0'):
+        return None
+    try:
+        from numba import njit
+    except ImportError:
+        return None
+    found = globals()
+    for name in KERNELS:             # rebound here, so that callers compile against them
+        found[name] = njit(cache=True)(found[name])
+    kernels = SimpleNamespace(**{name: found[name] for name in KERNELS})
+    _warm_up(kernels)
+    return kernels
 
 
 def warm_up():
-    """Compile (or load from numba's cache) every kernel now, not inside a timed call
-    (the first use in a process costs ~1 s; later ones nothing)."""
-    if _WARM:
-        return
-    _WARM.append(True)
+    """Load (or compile) the kernels now, not inside a timed call: the first use in a
+    process costs ~1 s with numba's cache (tens of seconds to fill it), later ones nothing."""
+    compiled()
+
+
+def _warm_up(k):
+    """Call every kernel once with the argument types a live neck passes."""
     n = 1
+    state_rate, actuator_forces = k.state_rate, k.actuator_forces
+    local_angles_and_rates, readings = k.local_angles_and_rates, k.readings
     state_rate(0.0, np.array([1.0, 1.0, 2.0, 1.0, 0.0, 0.0, 0.0, 0.0]), n,
                np.ones(1), np.ones(1), 0.0, np.eye(4), np.zeros((4, 2)),
                np.zeros((1, 2), dtype=np.int64), np.zeros(1), np.array([[0], [1], [2], [3]]),

@@ -380,8 +380,8 @@ class DynamicSimulator(Simulator):
     def _start_forecast(self, targets, cause):
         """Track the commanded path from the rest state ahead (a Job)."""
         end = tuple(m.with_(rho=float(r)) for m, r in zip(self.modules, targets))
-        job = Job(functools.partial(self._mechanism.track, self.modules, end, self.state),
-                  self._clock)
+        job = _on_its_own_thread(Job(functools.partial(
+            self._mechanism.track, self.modules, end, self.state), self._clock))
         self._forecast = _Forecast(self.modules, self.state, end, job, self._trigger,
                                    float(targets[self._trigger]), cause)
 
@@ -447,8 +447,8 @@ class DynamicSimulator(Simulator):
                 and look.end == end:
             predicting = look.job
         else:
-            predicting = Job(functools.partial(self._mechanism.track, self.modules, end,
-                                               self.state), self._clock)
+            predicting = _on_its_own_thread(Job(functools.partial(
+                self._mechanism.track, self.modules, end, self.state), self._clock))
         creep = self._creep_report()
         reporting = Job(report if report is not None else (lambda: creep), self._clock)
         self._arrival = _Arrival(self.modules, self.state, end, reporting, self._cause,
@@ -512,6 +512,14 @@ class DynamicSimulator(Simulator):
                                   tuple(self.modules)), arrival.trigger, arrival.cause)
         return dataclasses.replace(jump, dynamics=_figures(report, arrival.trigger, predicted,
                                                            elsewhere))
+
+
+def _on_its_own_thread(job):
+    """``job`` moved to its worker now: a path that takes longer than the rest of a call
+    would be tracked twice otherwise (a Job's first attempt on the caller's thread is
+    abandoned, not resumed, when it runs out of time)."""
+    job.run(-math.inf)
+    return job
 
 
 def _with_events(outcome, events, first=False):

@@ -115,7 +115,7 @@ class NeckEquations:
         return (self.n, contiguous(self.ramp.rho0, dtype=float),
                 contiguous(self.ramp.rho1, dtype=float),
                 -float(self.ramp.duration) if self.extend_ramp else float(self.ramp.duration),
-                contiguous(self.mass), contiguous(loads, dtype=float),
+                contiguous(np.linalg.inv(self.mass)), contiguous(loads, dtype=float),
                 contiguous([[a, b] for a, b, _ in self.springs], dtype=np.int64),
                 contiguous(self._spring_k.ravel()),
                 contiguous(np.array(self._frame_nodes, dtype=np.int64)),

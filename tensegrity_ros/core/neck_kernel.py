@@ -20,7 +20,8 @@ equations with numpy (the same numbers to rounding, ~10 times slower).
 Node coordinates (as :class:`.neck_dynamics.NeckEquations`): the moving nodes' positions
 and velocities; A1(0) fixed at the origin, A2(0) at (rho0(t), 0).  Rigid lengths (rods;
 the chords under upper modules, whose lengths are the upper actuators' rho) are imposed
-at acceleration level with a Baumgarte term; the KKT system is solved by LAPACK.
+at acceleration level with a Baumgarte term; the multipliers come from the Schur complement
+of the constant mass matrix (:func:`accelerations`), solved by LAPACK.
 """
 from __future__ import annotations
 
@@ -119,19 +120,27 @@ def node_forces(x, v, loads, springs, spring_k, frames, damping, imperfection):
     return force
 
 
-def accelerations(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k, frames,
-                  damping, imperfection, rigid, rigid_length, rigid_chord, baumgarte):
-    """(free node accelerations (4N), multipliers of the rigid lengths, node forces)."""
+def accelerations(t, y, n, rho0, rho1, duration, mass_inverse, loads, springs, spring_k,
+                  frames, damping, imperfection, rigid, rigid_length, rigid_chord, baumgarte):
+    """(free node accelerations (4N), multipliers of the rigid lengths, node forces).
+
+    M a = f + G^T lambda, G a = gamma, with the mass matrix M constant (``mass_inverse``
+    given): lambda from the Schur complement (G M^-1 G^T) lambda = gamma - G M^-1 f, whose
+    entries need only the 2 x 2 blocks of M^-1 between the two nodes of each rigid length
+    (a row of G has at most four entries): 3N - 1 unknowns instead of 7N - 1."""
     rho, rate = ramp_at(t, rho0, rho1, duration)
     x, v = node_table(y, n, rho[0], rate[0])
     force = node_forces(x, v, loads, springs, spring_k, frames, damping, imperfection)
     k = 4 * n
     m = rigid.shape[0]
-    system = np.zeros((k + m, k + m))
-    rhs = np.empty(k + m)
-    system[:k, :k] = mass
+    f = np.empty(k)
     for j in range(k):
-        rhs[j] = force[2 + j // 2, j % 2]
+        f[j] = force[2 + j // 2, j % 2]
+    u = mass_inverse @ f
+    # G's rows as (column, value) pairs: a rigid length's two nodes, x and y
+    cols = np.full((m, 4), -1, dtype=np.int64)
+    vals = np.zeros((m, 4))
+    gamma = np.empty(m)
     for e in range(m):
         a, b = rigid[e, 0], rigid[e, 1]
         dx, dy = x[a, 0] - x[b, 0], x[a, 1] - x[b, 1]
@@ -139,27 +148,43 @@ def accelerations(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k,
         chord = rigid_chord[e]
         length = rigid_length[e] if chord < 0 else rho[chord]
         length_rate = 0.0 if chord < 0 else rate[chord]
-        for node, sign in ((a, 2.0), (b, -2.0)):
+        for slot, node, sign in ((0, a, 2.0), (2, b, -2.0)):
             if node >= 2:
-                col = 2 * (node - 2)
-                system[k + e, col] = sign * dx
-                system[k + e, col + 1] = sign * dy
-                system[col, k + e] = -sign * dx
-                system[col + 1, k + e] = -sign * dy
+                cols[e, slot], cols[e, slot + 1] = 2 * (node - 2), 2 * (node - 2) + 1
+                vals[e, slot], vals[e, slot + 1] = sign * dx, sign * dy
         phi = dx * dx + dy * dy - length * length
         phi_dot = 2.0 * (dx * vx + dy * vy) - 2.0 * length * length_rate
-        rhs[k + e] = (-2.0 * (vx * vx + vy * vy) + 2.0 * length_rate * length_rate
-                      - 2.0 * baumgarte * phi_dot - baumgarte * baumgarte * phi)
-    solution = np.linalg.solve(system, rhs)
-    return solution[:k], solution[k:], force
+        gamma[e] = (-2.0 * (vx * vx + vy * vy) + 2.0 * length_rate * length_rate
+                    - 2.0 * baumgarte * phi_dot - baumgarte * baumgarte * phi)
+    schur = np.zeros((m, m))
+    for e in range(m):
+        for p in range(4):
+            i = cols[e, p]
+            if i < 0:
+                continue
+            gamma[e] -= vals[e, p] * u[i]
+            for g in range(m):
+                total = 0.0
+                for q in range(4):
+                    j = cols[g, q]
+                    if j >= 0:
+                        total += mass_inverse[i, j] * vals[g, q]
+                schur[e, g] += vals[e, p] * total
+    lam = np.linalg.solve(schur, gamma)
+    pull = f.copy()                                   # f + G^T lambda
+    for e in range(m):
+        for p in range(4):
+            if cols[e, p] >= 0:
+                pull[cols[e, p]] += vals[e, p] * lam[e]
+    return mass_inverse @ pull, lam, force
 
 
-def state_rate(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k, frames,
+def state_rate(t, y, n, rho0, rho1, duration, mass_inverse, loads, springs, spring_k, frames,
                damping, imperfection, rigid, rigid_length, rigid_chord, baumgarte):
     """dy/dt: (node velocities, node accelerations)."""
-    acc, _, _ = accelerations(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k,
-                              frames, damping, imperfection, rigid, rigid_length, rigid_chord,
-                              baumgarte)
+    acc, _, _ = accelerations(t, y, n, rho0, rho1, duration, mass_inverse, loads, springs,
+                              spring_k, frames, damping, imperfection, rigid, rigid_length,
+                              rigid_chord, baumgarte)
     k = 4 * n
     out = np.empty(2 * k)
     out[:k] = y[k:]
@@ -167,14 +192,14 @@ def state_rate(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k, fr
     return out
 
 
-def actuator_forces(t, y, n, rho0, rho1, duration, mass, loads, springs, spring_k, frames,
-                    damping, imperfection, rigid, rigid_length, rigid_chord, baumgarte,
+def actuator_forces(t, y, n, rho0, rho1, duration, mass_inverse, loads, springs, spring_k,
+                    frames, damping, imperfection, rigid, rigid_length, rigid_chord, baumgarte,
                     base_mass_row):
     """Every actuator's force (N): module 0's, the x force it exerts on A2(0) (the slider
     is massless: its share of the rods' inertia, minus the forces on A2(0)); an upper
     module's, 2 lambda l along the chord that is its telescopic rod (positive pushes)."""
-    acc, lam, force = accelerations(t, y, n, rho0, rho1, duration, mass, loads, springs,
-                                    spring_k, frames, damping, imperfection, rigid,
+    acc, lam, force = accelerations(t, y, n, rho0, rho1, duration, mass_inverse, loads,
+                                    springs, spring_k, frames, damping, imperfection, rigid,
                                     rigid_length, rigid_chord, baumgarte)
     rho, rate = ramp_at(t, rho0, rho1, duration)
     x, v = node_table(y, n, rho[0], rate[0])
@@ -217,7 +242,7 @@ def local_angles_and_rates(t, y, n, rho0, rho1, duration, frames):
     return angles, rates
 
 
-def readings(ts, ys, n, rho0, rho1, duration, mass, loads, springs, spring_k, frames,
+def readings(ts, ys, n, rho0, rho1, duration, mass_inverse, loads, springs, spring_k, frames,
              damping, imperfection, rigid, rigid_length, rigid_chord, baumgarte,
              base_mass_row):
     """Local angles, their rates and the actuator forces of many states ``ys`` at times
@@ -229,8 +254,8 @@ def readings(ts, ys, n, rho0, rho1, duration, mass, loads, springs, spring_k, fr
     for j in range(k):
         y = np.ascontiguousarray(ys[j])
         angles[j], rates[j] = local_angles_and_rates(ts[j], y, n, rho0, rho1, duration, frames)
-        forces[j] = actuator_forces(ts[j], y, n, rho0, rho1, duration, mass, loads, springs,
-                                    spring_k, frames, damping, imperfection, rigid,
+        forces[j] = actuator_forces(ts[j], y, n, rho0, rho1, duration, mass_inverse, loads,
+                                    springs, spring_k, frames, damping, imperfection, rigid,
                                     rigid_length, rigid_chord, baumgarte, base_mass_row)
     return angles, rates, forces
 

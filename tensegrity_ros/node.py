@@ -52,6 +52,7 @@ from visualization_msgs.msg import MarkerArray
 from tensegrity_ros import node_parameters as params
 from tensegrity_ros import ros_conversions as conv
 from tensegrity_ros.joint_state_names import NamesAndPositions, exact_names
+from tensegrity_ros.node_live_state import LiveStateReports
 from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.params_file import ConfigError, check_parameter_file
 from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog,
@@ -120,7 +121,7 @@ class ConfigurationError(RuntimeError):
     """The node's start-up configuration (parameters) cannot be used."""
 
 
-class TensegrityNode(Node):
+class TensegrityNode(LiveStateReports, Node):
     """ROS 2 node around a core :class:`Simulator`: parameters -> its configuration,
     messages -> its calls, its outcomes -> publishers and logs.
 
@@ -143,8 +144,6 @@ class TensegrityNode(Node):
         self._counters.update(commands_processed=0, commands_coalesced=0,
                               callback_exceptions=0, jump_warnings=0,
                               tracking_failures=0, jumps_total=0, commands_deferred=0)
-        self._lag_max = 0.0                 # dynamics: largest lag (s) since the last report
-        self._reset_under_way = False       # a reset answered "under way", not yet done
         self._level_events = set()          # what happened since the last /diagnostics
         self._loggers = {}
         self._last_stable = None
@@ -153,8 +152,7 @@ class TensegrityNode(Node):
         self._names = self._declare_modules()
         self._declare_parameters()
         self._dynamics = self.get_parameter('dynamics').value
-        if self._dynamics:
-            self._counters['dynamics_behind_ticks'] = 0
+        self._init_live_state_reports()
         self._warn_unknown_overrides()
         self._sim = self._start_simulator()
         self._published_revision = None     # simulator revision of the last statuses
@@ -693,26 +691,6 @@ class TensegrityNode(Node):
         self._level_events.add(event)
         self._throttled(event).warning(text, throttle_duration_sec=WARN_THROTTLE_SEC)
 
-    def _report_lag(self):
-        """Dynamics mode: a tick that ended with the simulation behind the clock is counted,
-        raises the node status to WARN and is logged (throttled); it catches up later."""
-        lag = self._sim.lag
-        if lag <= 0.0:
-            return
-        self._lag_max = max(self._lag_max, lag)
-        self._count_and_warn('dynamics_behind_ticks', 'behind', (
-            f'dynamics: the simulation is {lag:.3f} s behind the clock (it integrates at most '
-            f'{self._sim.time_budget * 1e3:g} ms per call); joint_states carry the time their '
-            f'state holds for; catching up'))
-
-    def _reset_done(self):
-        """A reset answered "under way" has settled: say so and publish the new state."""
-        self._reset_under_way = False
-        self._last_stable = None
-        self._publish_everything()
-        self.get_logger().info('reset done: ' + '; '.join(
-            self._describe_module(i) for i in range(len(self._names))))
-
     def _report_jump_ahead(self, warning):
         self._counters['jump_warnings'] += 1
         self._throttled('jump_ahead').warning(
@@ -738,23 +716,6 @@ class TensegrityNode(Node):
         self._publish_statuses()
         self._on_markers_tick()
 
-    def _publish_joint_states(self, now_ns=None):
-        """Publish the live state, stamped ``now_ns`` (the time it holds for) or now; in the
-        dynamics mode the time the integrated state holds for (earlier while it lags)."""
-        js = self._js
-        for i in range(len(self._names)):
-            if self._dynamics:
-                live = self._sim.live(i)
-                js.set_module(i, live.rho, live.theta1, live.theta2, live.actuator_force)
-                js.set_velocity(i, live.rho_dot, live.theta1_dot, live.theta2_dot)
-            else:
-                p, eq = self._sim.module(i)
-                js.set_module(i, p.rho, eq.theta1, eq.theta2, eq.actuator_force)
-        stamp = self._now_ns() if now_ns is None else now_ns
-        if self._dynamics and self._sim.state_time_ns is not None:
-            stamp = min(stamp, self._sim.state_time_ns)
-        self._js_pub.publish(js.stamped(stamp))
-
     def _publish_statuses(self):
         """equilibrium of every module (all N together, in module order), and stable if
         it changed."""
@@ -777,10 +738,7 @@ class TensegrityNode(Node):
     def _on_tick(self):
         now = self._now_ns()
         self._report(self._sim.advance(now))
-        if self._dynamics:
-            self._report_lag()
-        if self._reset_under_way and not self._sim.pending:
-            self._reset_done()
+        self._report_progress()
         self._publish_joint_states(now)
         self._publish_head_pose()
         self._publish_statuses_if_changed()
@@ -809,6 +767,7 @@ class TensegrityNode(Node):
 
     def _publish_diagnostics(self):
         events, self._level_events = self._level_events, set()
+        progress, extra = self._progress_summary(events)
         if 'exception' in events:
             level, message = conv.ERROR, 'unexpected exception in a callback (see log)'
         elif events:
@@ -819,9 +778,7 @@ class TensegrityNode(Node):
                 parts.append('tracking failed')
             if 'deferred' in events:
                 parts.append('a command took more than one tick')
-            if 'behind' in events:
-                parts.append(f'the simulation fell behind the clock (up to '
-                             f'{self._lag_max:.3g} s)')
+            parts += [progress] if progress else []
             level, message = conv.WARN, ', '.join(parts) + ' since the last report'
         else:
             level, message = conv.OK, 'ok'
@@ -830,11 +787,7 @@ class TensegrityNode(Node):
         counters = dict(self._counters)
         counters['rejected_total'] = sum(v for k, v in counters.items()
                                          if k.startswith('rejected_'))
-        node_status.values = conv.key_values(sorted(counters.items()))
-        if self._dynamics:
-            node_status.values += conv.key_values([('dynamics_lag', self._sim.lag),
-                                                   ('dynamics_lag_max', self._lag_max)])
-            self._lag_max = self._sim.lag
+        node_status.values = conv.key_values(sorted(counters.items()) + extra)
         self._publish_statuses_if_changed()
         msg = DiagnosticArray(status=[node_status] + self._last_statuses)
         msg.header.stamp = self._node_clock.now().to_msg()

@@ -155,7 +155,7 @@ def test_the_quasi_static_node_never_loads_numba():
     dynamics-mode module) runs without it (a fresh interpreter, as the node's process)."""
     import subprocess
     import sys
-    code = '''
+    code = """
 import sys, rclpy
 from rclpy.parameter import Parameter
 from tensegrity_ros.node import TensegrityNode
@@ -169,7 +169,7 @@ sim = DynamicSimulator([p], [[-1.0, -1.0]], [ModuleLimits(0.05, 1.95, 0.1)], dam
 sim.command_rho(0, 0.6, 0); sim.advance(10**9)
 node.destroy_node(); rclpy.shutdown()
 print('numba' in sys.modules)
-'''
+"""
     done = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                           timeout=120)
     assert done.returncode == 0, done.stderr

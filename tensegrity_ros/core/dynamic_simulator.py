@@ -81,6 +81,24 @@ class _Forecast:
         self.start, self.state, self.end, self.job = start, state, end, job
         self.index, self.rho, self.cause, self.warned = index, rho, cause, False
 
+    def warning(self, rho):
+        """The JumpAhead of the tracked path's first jump if the actuator, at ``rho`` now,
+        has not reached it yet; None otherwise (or if tracking failed: the motion will
+        meet the trouble and report it)."""
+        try:
+            motion = self.job.result()
+        except SOLVER_ERRORS:
+            return None
+        if not motion.jumps:
+            return None
+        kind, _, critical, from_theta, _, _, _ = motion.jumps[0]
+        end_rho = float(critical[self.index].rho)
+        if (end_rho - rho) * (self.rho - rho) <= 0.0:
+            return None                 # already there: the snap says it
+        end = BranchEnd(rho=end_rho, kind=kind, modules=tuple(critical),
+                        theta=np.reshape(from_theta, (-1, 2)))
+        return JumpAhead(module=self.index, rho=self.rho, end=end, cause=self.cause)
+
 
 class _Arrival:
     """Rods that came to rest, being verified (settled where they rest) and compared with
@@ -401,20 +419,8 @@ class DynamicSimulator(Simulator):
         look.warned = True
         if self._mechanism.has_operation_range:
             return ()
-        try:
-            motion = look.job.result()
-        except SOLVER_ERRORS:           # the motion will meet it and report it
-            return ()
-        if not motion.jumps:
-            return ()
-        kind, _, critical, from_theta, _, _, _ = motion.jumps[0]
-        end_rho = float(critical[look.index].rho)
-        rho = _per_module(self._moving.rho)[look.index]
-        if (end_rho - rho) * (look.rho - rho) <= 0.0:
-            return ()                   # already there: the snap says it
-        end = BranchEnd(rho=end_rho, kind=kind, modules=tuple(critical),
-                        theta=np.reshape(from_theta, (-1, 2)))
-        return (JumpAhead(module=look.index, rho=look.rho, end=end, cause=look.cause),)
+        warning = look.warning(_per_module(self._moving.rho)[look.index])
+        return () if warning is None else (warning,)
 
     def _hint_rest(self):
         """Give the moving mechanism the forecast's landing as the likely rest state (if
@@ -491,27 +497,39 @@ class DynamicSimulator(Simulator):
         """A Jump for a snap that came to rest, with the quasi-static prediction of the
         same change (``motion``, or None if the tracker failed) beside it; None if the rods
         only moved fast along their branch."""
-        report, start = arrival.reporting.result(), arrival.start
-        predicted = raw = None
-        if motion is not None:
-            predicted = np.reshape(np.asarray(motion.final.theta, dtype=float), (-1, 2))
-            raw = motion.jumps[0] if motion.jumps else None
+        report = arrival.reporting.result()
         landing = np.reshape(np.asarray(eq.theta, dtype=float), (-1, 2))
-        elsewhere = predicted is None or bool(
-            np.max(np.abs(wrap(landing - predicted))) > SAME_LANDING)
-        if raw is None and (not elsewhere or report['onset_rho'] is None):
-            return None         # fast along its branch, or slow with no fold on the way
-        onset_rhos = (_per_module(report['onset_rho']) if report['onset_rho'] is not None
-                      else tuple(p.rho for p in start))
-        if raw is None:     # inertia alone: no fold on the quasi-static path
-            raw = ('inertial', 1.0, tuple(p.with_(rho=r) for p, r in zip(start, onset_rhos)),
-                   np.reshape(arrival.start_state.theta, (-1, 2)), None, False, None)
-        kind, s, critical, from_theta, _, ambiguous, _ = raw
+        found = _critical_point(report, arrival, motion, landing)
+        if found is None:
+            return None
+        (kind, s, critical, from_theta, _, ambiguous, _), predicted, elsewhere = found
         # (the rods rest in an equilibrium of the parameters now, not of the critical ones)
         jump = self._record_jump((kind, s, critical, from_theta, landing, ambiguous,
                                   tuple(self.modules)), arrival.trigger, arrival.cause)
         return dataclasses.replace(jump, dynamics=_figures(report, arrival.trigger, predicted,
                                                            elsewhere))
+
+
+def _critical_point(report, arrival, motion, landing):
+    """(the jump's critical point as the tracker's raw jump, the predicted landing or None,
+    whether the rods landed elsewhere), or None if the motion was no jump: fast along its
+    branch, or slow with no fold on the way.  With no fold on the quasi-static path but a
+    landing elsewhere, inertia alone made the jump: ``inertial``, from the last rest state
+    at the onset's actuator lengths."""
+    predicted = raw = None
+    if motion is not None:
+        predicted = np.reshape(np.asarray(motion.final.theta, dtype=float), (-1, 2))
+        raw = motion.jumps[0] if motion.jumps else None
+    elsewhere = predicted is None or bool(
+        np.max(np.abs(wrap(landing - predicted))) > SAME_LANDING)
+    if raw is None and (not elsewhere or report['onset_rho'] is None):
+        return None
+    if raw is None:
+        start = arrival.start
+        onset_rhos = _per_module(report['onset_rho'])
+        raw = ('inertial', 1.0, tuple(p.with_(rho=r) for p, r in zip(start, onset_rhos)),
+               np.reshape(arrival.start_state.theta, (-1, 2)), None, False, None)
+    return raw, predicted, elsewhere
 
 
 def _on_its_own_thread(job):

@@ -32,6 +32,7 @@ from .tracking import ModulePath, ModuleTrack, settle, track_module
 from .transient import (MAX_HOLD, ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, Rest, RhoRamp,
                         SnapHistory, SolverSettings, imperfection_torque, wrap as _wrap)
 
+
 @dataclass(frozen=True)
 class Snap:
     """Result of :func:`simulate_snap`: the history, the summary and the quasi-static
@@ -192,8 +193,8 @@ class ModuleEquations:
 
         def excess(t, ys):
             delta = ys[:, :2] - theta_eq
-            return 0.5 * (ys[:, 2:] ** 2 @ self.inertia + np.einsum('ni,ij,nj->n', delta, h,
-                                                                     delta))
+            potential = np.einsum('ni,ij,nj->n', delta, h, delta)
+            return 0.5 * (ys[:, 2:] ** 2 @ self.inertia + potential)
         return excess
 
 

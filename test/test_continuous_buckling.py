@@ -124,7 +124,7 @@ def test_a_neck_command_ending_just_past_its_passage_ends_ok():
     near the branch point Newton pins the state along the soft mode only so far, 1e-9
     past it, where lambda_min / lambda_max is 9e-12: the two ends differed by 1.5e-7,
     and by 2.1e-7 once the buckled branch's arclength points were taken at whatever s,
-    ``_Tracker.arc_point``'s any_s; 1e-8 past: 2e-8 and 9e-9)."""
+    ``continuation.correctors.arc_point``'s any_s; 1e-8 past: 2e-8 and 9e-9)."""
     start = neck(3, 0.6, 1.0, 100.0, 0.0)
     first = settle_stack(start, upright_guess(start.modules))
     whole = track_stack(start, at_load(start, -10.0), first)

@@ -409,7 +409,7 @@ def test_a_rigid_flow_stepping_over_a_flat_crossing_stops_at_it():
     """A flow step whose ends lie on both sides of a module's flat crossing (both rods
     turned through the base line between them) is searched on its dense output: the
     flattest state in it is found, flatter than either end."""
-    from tensegrity_ros.core.continuation import _Tracker
+    from tensegrity_ros.core.continuation.flows import flattest_in_step
     stack = Stack((ModuleParams.paper(0.6), ModuleParams.paper(0.6)))
     path = StackPath(stack, stack)
     a, b = np.zeros(path.size), np.zeros(path.size)
@@ -428,6 +428,6 @@ def test_a_rigid_flow_stepping_over_a_flat_crossing_stops_at_it():
         def dense_output(self):
             return Step()
 
-    flattest = _Tracker.flattest_in_step(Solver(), 0.0, path.flatness)
+    flattest = flattest_in_step(Solver(), 0.0, path.flatness)
     assert path.flatness(flattest, 0.0) < 1e-6 * min(path.flatness(a, 0.0), path.flatness(b, 0.0))
     assert abs(flattest[0]) < 1e-6

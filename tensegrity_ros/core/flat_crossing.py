@@ -6,7 +6,7 @@ point of the module's linkage.  There chord i's gradient in the module's own two
 angles vanishes and the chord's solution set crosses itself (c ~ x^T H x / 2, H
 indefinite): four half-branches leave the crossing.  The projected (rigid) flow stalls
 on the crossing, as its projection is undefined there; the tracker goes on along one of
-the half-branches (``continuation._Tracker.through_crossing``).  Here is the geometry:
+the half-branches (``continuation.flows.through_crossing``).  Here is the geometry:
 the module's flatness, the crossing next to a state, and the states a short way out
 along each half-branch, all on the constraints.
 

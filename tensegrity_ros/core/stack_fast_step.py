@@ -172,11 +172,17 @@ def whole_command_step(path, y, settings, known=None):
     values1 = eigenvalues1.tolist()
     if not _continuation.positive_definite(values1, scale, cfg):
         return None
-    if values1[0] < _STEADY * eigenvalues[0]:
-        # lambda_min fell: a fold or branch point may be near; the tracker's step bound
-        # (its forward-difference probe of d lambda_min / ds at the start) decides
-        rate = _continuation.forward_rate(lambda y, s: path.eigenvalues_at(path.evaluate(y, s)),
-                                          y, 0.0, -backward, eigenvalues[0])
-        if not _continuation.step_bound(reach, eigenvalues[0], rate, cfg) >= 1.0:
-            return None
+    if not _within_step_bound(path, y, backward, reach, eigenvalues[0], values1[0], cfg):
+        return None
     return y1, eigenvalues1, energy1, residual, end, factors
+
+
+def _within_step_bound(path, y, backward, reach, lam0, lam1, cfg):
+    """Whether the whole command is within the tracker's step bound: where lambda_min
+    fell by more than ``_STEADY`` over it (a fold or branch point may be near), its
+    forward-difference probe of d lambda_min / ds at the start decides."""
+    if lam1 >= _STEADY * lam0:
+        return True
+    rate = _continuation.forward_rate(lambda y, s: path.eigenvalues_at(path.evaluate(y, s)),
+                                      y, 0.0, -backward, lam0)
+    return _continuation.step_bound(reach, lam0, rate, cfg) >= 1.0

@@ -30,7 +30,7 @@ the tracker then says so (:attr:`.continuation.Track.certificate`), and
 :attr:`.classification.Equilibrium.stable` (the unloaded paper module 1e-10 in rho past
 rho = L: 2e-10 of lambda_max) and the simulator accept it.  A certified state is also a
 start the tracker takes, and a command from it back towards the branch point is solved
-by the normal form (:meth:`.continuation._Tracker.toward_branch_point`).
+by the normal form (:func:`.continuation.branch_switching.toward_branch_point`).
 
 At a supercritical branch point itself (a command ending within the tracker's location
 tolerance, 1e-9 in s, of it: the unloaded paper module commanded to rho = L exactly)

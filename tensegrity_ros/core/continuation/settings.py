@@ -1,0 +1,116 @@
+"""The tracker's tolerances and step limits, each named and cited where it is used."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+from ..tolerances import DEFINITENESS_TOL
+
+#: Newton's contraction test on a buckled branch followed away from its branch point
+#: (:func:`.branch_switching.away_from_branch_point`): in that nearly cubic valley Newton
+#: converges linearly, by 2/3 an iterate (x - x^3 / (3 x^2)), so the usual 1/2 stops it at
+#: a state up to 2x off the minimum whose residual already passes the tolerance (the
+#: unloaded module 1.5e-8 in rho past its branch point: 3.5e-4 rad for 1.76e-4; then 180
+#: false jumps).  Not everywhere: it made the N = 3 neck's command up to 1e-10 before its
+#: branch point list a false passage 7e-8 early.
+PITCHFORK_CONTRACTION = 0.75
+#: A critical point is located to this in s (DESIGN.md): a command that ends closer than
+#: this past one ends at the critical point itself (see :func:`.lander.at_the_critical_point`).
+LOCATION_TOL = 1e-9
+#: A command ending closer than this in s past a supercritical branch point ends at the
+#: branch point itself: a buckled state that close is not told from it (the normal form's
+#: linear law of lambda_min puts s* within ~1e-11 from a state 3e-5 in s away on the
+#: N = 3 neck: see :func:`.branch_switching.toward_branch_point`).  The unloaded paper
+#: module commanded to rho = 1.0 from below met its branch point 4.4e-13 in s before the
+#: end, rho's rounding, and ended 'past' it 8e-9 rad out, a state the next command back
+#: up could not leave (the time budget ran out).
+UNRESOLVED = 1e-11
+#: A Newton update (relative to 1 + |y|) left above this where Newton stopped converging:
+#: the state is not resolved to what its eigenvalues need.  Newton from an equilibrium
+#: stops at updates of ~1e-14 (rounding); next to a fold it converges only linearly (by
+#: 1/2 an iterate, the Jacobian singular at the double root), and stops at the first
+#: update that does not halve: 1.4e-5 rad from a state config/neck.yaml was left on
+#: after a failed landing (residual 1.9e-8, within the 1.1e-7 tolerance; lambda_min
+#: 0.013 N/m there, ~0 at the fold).
+UNRESOLVED_UPDATE = 1e-9
+#: A rigid landing flow leg stops to look for a flat crossing once the flattest module's
+#: chord gradient (over l_ref) is below this (see :func:`.flows.rigid_flow_to_rest`); it
+#: goes on through at most MAX_CROSSING_LEGS such stops per flow.
+CROSSING_APPROACH = 1e-3
+MAX_CROSSING_LEGS = 16
+#: Where a command ends on a module's flat crossing, a mechanism released there that
+#: comes to rest farther than this (weighted state norm) has jumped (see
+#: :func:`.linkage_limits.snap_at_end_crossing`): ten times the passage radius; a minimum
+#: going on through the crossing stays ~sqrt(the step in s) of it, ~1e-6 at the last steps.
+SNAP_DISTANCE = 1e-3
+#: Next to an exact crossing (see ``flat_crossing.rounding``), Newton's iterates that
+#: stall within this many rounding radii of it are at it: the radius is an
+#: order-of-magnitude estimate of the chord's rounding (bench_round_commands seed 2,
+#: stream 11: stalled at 1.015 radii, the residual 0.26, 1e7 times the tolerance, since
+#: no state there is resolved better).
+EXACT_CROSSING_STALL = 4.0
+#: An arclength point is kept only where its Newton's last update moved the state by
+#: less than this (weighted state norm): Newton stopped after an update that no longer
+#: contracts leaves the point off the branch by about that update, and its residual may
+#: still pass a tolerance relative to the stiffness scale, which a module folded flat
+#: inflates (config/neck.yaml, bench_round_commands seed 1, stream 12: points kept
+#: after one update of 7.9e-4, residual 3.4e-6 against 1.3e-5, lambda_max 4.5e8; the
+#: fold was located on them, 4.9e-7 in s past the one the reference's fold equations
+#: give, and the landing failed).  Next to that flat module, whose angles the chord
+#: fixes only to ~sqrt(rounding), resolved points still move by up to 1.2e-7.
+ARC_RESOLUTION = 1e-6
+
+
+@dataclass(frozen=True)
+class TrackerSettings:
+    """Tolerances and step limits of :func:`track` (named, so they can be tuned and cited)."""
+
+    #: Largest predicted change of any state component in one step (rad).
+    max_state_step: float = 0.05
+    #: The smallest eigenvalue may be predicted to shrink to this fraction per step.
+    eigenvalue_shrink: float = 0.5
+    #: Residual accepted as an equilibrium, relative to the stability scale.
+    residual_tol: float = 1e-10
+    #: Positive definite means lambda_min > this * |lambda_max| (see :mod:`..tolerances`).
+    definiteness_tol: float = DEFINITENESS_TOL
+    #: Newton iterations per corrector.
+    newton_iterations: int = 12
+    #: Below this |psi . F_s| / |F_s| the critical point is a branch point.
+    branch_tol: float = 1e-6
+    #: The mechanism lands with the parameters frozen this far past the event (in s,
+    #: at least; made larger where the command is short, see ``lander.landing_offset``).
+    landing_offset: float = 1e-7
+    #: Step-off distance along the critical mode before sliding down (state units).
+    step_off: float = 1e-2
+    #: Give up after this many steps (a guard, never reached in practice).
+    max_steps: int = 100000
+    #: Smallest step in s before the tracker localises or gives up.
+    min_step: float = 1e-13
+    #: Velocity evaluations one landing flow may spend before it is abandoned.
+    flow_evaluations: int = 200000
+    #: Two states closer than this (weighted state norm) are the same state; also the
+    #: corrector's slack near a critical point, where rounding is amplified by 1/lambda_min.
+    same_state_tol: float = 1e-7
+    #: Near a pitchfork |lambda_min| <= critical_tol pins the critical state only to
+    #: ~sqrt(critical_tol): a landing this close to it (weighted state norm) that does
+    #: not move with the freezing offset is the minimum going on, not a jump.
+    passage_radius: float = 1e-4
+    #: A located critical point must have |lambda_min| below this, relative to the scale.
+    critical_tol: float = 1e-9
+    #: An arclength step is kept only if the branch direction turns less than this
+    #: (cosine) over it: a sharper turn means the corrector reached another branch.
+    arc_alignment: float = 0.9
+    #: Where steps underflow, a state with lambda_min below this (relative to the scale)
+    #: is a critical point reached to rounding (see ``lander.end_at_rounding``).
+    rounding_critical: float = 1e-5
+    #: Past a linkage limit the minimum is looked for this far on (in s, and 100 times
+    #: closer, to see that it closes in: see ``linkage_limits.through_linkage_limit``).
+    linkage_offset: float = 1e-6
+    #: Seconds one command may take before it gives up (None: no limit): checked at every
+    #: check point (:func:`..bounded_work.checkpoint`), nested landings, followers and
+    #: bisections included, so a command ends at most one check point's work past it,
+    #: on its last verified state (status 'failed').
+    time_budget: float | None = None
+    #: The clock ``time_budget`` is read on (tests inject a counting clock).
+    clock: Callable[[], float] = time.perf_counter

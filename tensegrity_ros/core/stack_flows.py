@@ -1,0 +1,126 @@
+"""How a neck moves at frozen parameters: the overdamped flows the tracker lands by, and the
+projection onto the chord constraints (a mixin of :class:`.stack_path.StackPath`)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .stack_model import _null_basis, _solve_gram, _solve_guarded
+
+# Landing flow near kinematic singularities: the constraint Gram matrix (entries ~1)
+# is damped by up to _DAMPING once its smallest eigenvalue falls below _DAMPING_ONSET.
+_DAMPING = 1e-3
+_DAMPING_ONSET = 1e-2
+#: Largest Gauss-Newton step of :meth:`StackPath.project` (rad, the fastest rod): next
+#: to a module folded flat the chord's gradient vanishes and the full step is unbounded
+#: (4.3e4 rad seen: bench_round_commands seed 0, stream 11), which lands on an arbitrary
+#: configuration, not a nearby one; shorter steps reach the arm of the chord's solution
+#: set next to the state.
+PROJECT_STEP = 0.1
+#: A state meets the chord constraints if it misses none by more than this (times
+#: l_ref): :meth:`StackPath.project` stalls at ~1e-13 where an admissible state is near,
+#: and misses by 1e-5 or more past a linkage limit, where none is.
+PROJECTION_TOL = 1e-9
+
+
+class StackFlows:
+    """The flows and the projection of :class:`.stack_path.StackPath`."""
+
+    def _unconstrained_gradient(self, p):
+        """dU/dphi without the chord forces (2N,)."""
+        top = self.topology
+        ns = top.n_springs
+        springs = top.element_rods_t[:, :ns] @ (p.weights[:ns] * p.diff[:ns])
+        return (p.rods.conj() * (springs - p.values.rod_loads)).imag
+
+    def descent(self, y, s):
+        """Overdamped velocity in the Cartesian metric of the nodes: the projected force
+        plus a pull back onto the chord constraints."""
+        p = self.point(y, s)
+        free = np.linalg.solve(p.metric(self), self._unconstrained_gradient(p))
+        if not self.topology.n_chords:
+            return -free
+        jc, mobility_jc, gram, rate = self._damped_constraints(p)
+        correction = np.linalg.solve(gram, jc @ free - rate * p.constraints(self))
+        return np.concatenate([-free + mobility_jc @ correction, np.zeros_like(p.mu)])
+
+    def _damped_constraints(self, p):
+        """(constraint Jacobian, metric^-1 jc^T, their Gram matrix damped, pull rate)
+        for the overdamped flows.  Damped (Levenberg): smooth through kinematic
+        singularities of the stack, where rods fold flat onto a chord and the constraint
+        rows degenerate."""
+        jc, mobility_jc, gram, smallest = self._chord_gram(p)
+        if smallest < _DAMPING_ONSET:
+            gram = gram + _DAMPING * (1.0 - smallest / _DAMPING_ONSET) ** 2 * np.eye(len(jc))
+        return jc, mobility_jc, gram, float(np.max(p.values.k)) * 2.0
+
+    def _chord_gram(self, p):
+        """(constraint Jacobian, metric^-1 jc^T, their Gram matrix, its smallest
+        eigenvalue): whether the flows damp turns on the last."""
+        jc = p.constraint_jacobian(self)
+        mobility_jc = np.linalg.solve(p.metric(self), jc.T)
+        gram = jc @ mobility_jc
+        return jc, mobility_jc, gram, np.linalg.eigvalsh(gram)[0]
+
+    def damped(self, y, s):
+        """Whether :meth:`descent` damps its projection at ``y`` (a module so near flat
+        that the Gram matrix of the chord gradients has an eigenvalue below
+        ``_DAMPING_ONSET``): there it flows as a neck of slightly elastic chords, not as
+        the rigid-chord model, and may pass a module through flat where the rigid
+        mechanism does not (see :meth:`rigid_descent`)."""
+        if not self.topology.n_chords:
+            return False
+        return bool(self._chord_gram(self.point(y, s))[3] < _DAMPING_ONSET)
+
+    def rigid_descent(self, y, s):
+        """:meth:`descent` with the force projected exactly (through a null basis of the
+        constraints, not the damped Gram inverse), so that it rests only where the
+        rigid-chord model is in equilibrium; only the pull onto the constraints is damped.
+
+        Near a module folded almost flat (the Gram matrix's smallest eigenvalue below
+        ``_DAMPING_ONSET``) :meth:`descent` damps the projection too: it glides through
+        the kinematic singularity as a neck of slightly elastic chords would, but rests
+        there off the constraints by ~damping * chord force / rate (5e-5 m on
+        config/neck.yaml), where no Newton from its projection may find the landing.
+        The tracker's landing flow starts over with this one where it rested so."""
+        p = self.point(y, s)
+        metric = p.metric(self)
+        gradient = self._unconstrained_gradient(p)
+        if not self.topology.n_chords:
+            return -np.linalg.solve(metric, gradient)
+        jc, mobility_jc, gram, rate = self._damped_constraints(p)
+        z = _null_basis(jc, self.topology.trailing_columns)
+        tangential = z @ np.linalg.solve(z.T @ metric @ z, z.T @ gradient)
+        pull = mobility_jc @ np.linalg.solve(gram, rate * p.constraints(self))
+        return np.concatenate([-tangential - pull, np.zeros_like(p.mu)])
+
+    def project(self, y, s):
+        """Nearby admissible rod angles (Gauss-Newton in the node metric, each step at
+        most ``PROJECT_STEP``) and least-squares multipliers.  Where no admissible state
+        is near (past a linkage limit) the angles it returns miss the chords:
+        :meth:`on_constraints` tells."""
+        top = self.topology
+        y = np.array(y, dtype=float)
+        if not top.n_chords:
+            return y
+        for _ in range(50):
+            p = self.point(y, s)
+            c = p.constraints(self)
+            if np.max(np.abs(c)) < 1e-15 * self.l_ref:
+                break
+            jc = p.constraint_jacobian(self)
+            mobility_jc = np.linalg.solve(p.metric(self), jc.T)
+            step = mobility_jc @ _solve_guarded(jc @ mobility_jc, c)
+            y[:top.n_rods] -= step * min(1.0, PROJECT_STEP / max(np.max(np.abs(step)), 1e-300))
+        p = self.point(y, s)
+        jc = p.constraint_jacobian(self)
+        y[top.n_rods:] = -_solve_gram(jc, jc @ self._unconstrained_gradient(p)) / self.f_ref
+        return y
+
+    def on_constraints(self, y, s):
+        """Whether ``y`` meets every chord constraint at s to ``PROJECTION_TOL`` l_ref
+        (:meth:`project` may not bring a state there: past a linkage limit no admissible
+        state is near)."""
+        if not self.topology.n_chords:
+            return True
+        c = self.point(y, s).constraints(self)
+        return bool(np.max(np.abs(c)) <= PROJECTION_TOL * self.l_ref)

@@ -321,3 +321,23 @@ def test_a_reset_that_needs_more_than_one_tick_answers_under_way_then_is_done(ha
     h.spin_until(lambda: h.stable[-1].data and h.joint_states[-1].position[0] == RHO0,
                  what='the initial state published')
     assert h.state()[1] < 0                            # the lower branch again
+
+
+def test_a_neck_command_warns_of_the_fold_ahead_in_the_dynamics_mode(harness):
+    """Issue 31 (3): config/neck.yaml in the dynamics mode, m2's actuator to 0.12 (the fold
+    at 0.1127 is 0.65 s ahead at 0.05 m/s): the WARN and jump_warnings come before the rods
+    snap, as in the quasi-static mode (jump_warnings used to stay 0)."""
+    from std_msgs.msg import Float64
+
+    from test_node_neck import MODULES, Neck
+    extra = {'dynamics': True}
+    for m in MODULES:
+        extra.update({f'{m}.max_rho_rate': 0.05, f'{m}.damping': 0.01})
+    neck = Neck(harness, parameters=extra)
+    h = neck.h
+    neck.rho_pubs['m2'].publish(Float64(data=0.12))
+    h.spin_until(lambda: h.warnings('leaves the stable branch'), what='the early warning')
+    assert not h.jumps                                  # before the snap
+    h.spin_until(lambda: (h.counter('jump_warnings') or 0) >= 1, what='jump_warnings')
+    h.spin_until(lambda: h.jumps, timeout=60, what='the jump')
+    assert values(h.jumps[-1])['kind'] == 'fold'

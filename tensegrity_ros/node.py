@@ -52,6 +52,7 @@ from visualization_msgs.msg import MarkerArray
 from tensegrity_ros import node_parameters as params
 from tensegrity_ros import ros_conversions as conv
 from tensegrity_ros.joint_state_names import NamesAndPositions, exact_names
+from tensegrity_ros.node_live_state import LiveStateReports
 from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.params_file import ConfigError, check_parameter_file
 from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog,
@@ -120,7 +121,7 @@ class ConfigurationError(RuntimeError):
     """The node's start-up configuration (parameters) cannot be used."""
 
 
-class TensegrityNode(Node):
+class TensegrityNode(LiveStateReports, Node):
     """ROS 2 node around a core :class:`Simulator`: parameters -> its configuration,
     messages -> its calls, its outcomes -> publishers and logs.
 
@@ -151,6 +152,7 @@ class TensegrityNode(Node):
         self._names = self._declare_modules()
         self._declare_parameters()
         self._dynamics = self.get_parameter('dynamics').value
+        self._init_live_state_reports()
         self._warn_unknown_overrides()
         self._sim = self._start_simulator()
         self._published_revision = None     # simulator revision of the last statuses
@@ -617,6 +619,7 @@ class TensegrityNode(Node):
             self._report(outcome)
             response.success = True
             if self._sim.pending:               # a long settle: it ends on later ticks
+                self._reset_under_way = True
                 response.message = ('reset under way: settling takes more than one tick; '
                                     'the state is published when it is reached')
             else:
@@ -713,19 +716,6 @@ class TensegrityNode(Node):
         self._publish_statuses()
         self._on_markers_tick()
 
-    def _publish_joint_states(self, now_ns=None):
-        """Publish the live state, stamped ``now_ns`` (the time it holds for) or now."""
-        js = self._js
-        for i in range(len(self._names)):
-            if self._dynamics:
-                live = self._sim.live(i)
-                js.set_module(i, live.rho, live.theta1, live.theta2, live.actuator_force)
-                js.set_velocity(i, live.rho_dot, live.theta1_dot, live.theta2_dot)
-            else:
-                p, eq = self._sim.module(i)
-                js.set_module(i, p.rho, eq.theta1, eq.theta2, eq.actuator_force)
-        self._js_pub.publish(js.stamped(self._now_ns() if now_ns is None else now_ns))
-
     def _publish_statuses(self):
         """equilibrium of every module (all N together, in module order), and stable if
         it changed."""
@@ -748,6 +738,7 @@ class TensegrityNode(Node):
     def _on_tick(self):
         now = self._now_ns()
         self._report(self._sim.advance(now))
+        self._report_progress()
         self._publish_joint_states(now)
         self._publish_head_pose()
         self._publish_statuses_if_changed()
@@ -776,6 +767,7 @@ class TensegrityNode(Node):
 
     def _publish_diagnostics(self):
         events, self._level_events = self._level_events, set()
+        progress, extra = self._progress_summary(events)
         if 'exception' in events:
             level, message = conv.ERROR, 'unexpected exception in a callback (see log)'
         elif events:
@@ -786,6 +778,7 @@ class TensegrityNode(Node):
                 parts.append('tracking failed')
             if 'deferred' in events:
                 parts.append('a command took more than one tick')
+            parts += [progress] if progress else []
             level, message = conv.WARN, ', '.join(parts) + ' since the last report'
         else:
             level, message = conv.OK, 'ok'
@@ -794,7 +787,7 @@ class TensegrityNode(Node):
         counters = dict(self._counters)
         counters['rejected_total'] = sum(v for k, v in counters.items()
                                          if k.startswith('rejected_'))
-        node_status.values = conv.key_values(sorted(counters.items()))
+        node_status.values = conv.key_values(sorted(counters.items()) + extra)
         self._publish_statuses_if_changed()
         msg = DiagnosticArray(status=[node_status] + self._last_statuses)
         msg.header.stamp = self._node_clock.now().to_msg()

@@ -17,11 +17,13 @@ setup(
     ],
     # What the node and the offline tool import (ROS itself: rclpy and the message packages,
     # from a ROS install or the ros-jazzy-* wheels of requirements.txt).
-    install_requires=['setuptools', 'numpy', 'scipy', 'PyYAML'],
+    # (numba compiles a live neck's equations of motion; without it they run in numpy).
+    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'PyYAML'],
     extras_require={
-        # the offline tool's PNG figures and progress bar (`pip install .[tools]`)
-        'tools': ['matplotlib', 'tqdm'],
-        'test': ['pytest', 'hypothesis', 'matplotlib', 'tqdm'],
+        # the offline tool's PNG figures, progress bar and tolerance studies
+        # (`pip install .[tools]`)
+        'tools': ['matplotlib', 'tqdm', 'dask', 'distributed'],
+        'test': ['pytest', 'hypothesis', 'matplotlib', 'tqdm', 'dask', 'distributed'],
     },
     zip_safe=True,
     # placeholders on RFC 2606's documentation domain, as in package.xml

@@ -63,6 +63,7 @@ from tensegrity_ros.core.stack import Stack
 from tensegrity_ros.core.trajectory import ABORTED, MotionEnded, TrajectoryPlayer
 from tensegrity_ros.joint_state_names import exact_names, NamesAndPositions
 from tensegrity_ros.log_text import clipped, shown
+from tensegrity_ros.node_live_state import LiveStateReports
 from tensegrity_ros.parameter_handling import ConfigurationError, ParameterHandling
 from tensegrity_ros.params_file import check_parameter_file, ConfigError
 
@@ -136,7 +137,7 @@ TRAJECTORY_COUNTERS = ('trajectories_accepted', 'trajectories_succeeded',
                        'trajectories_aborted', 'trajectories_canceled')
 
 
-class TensegrityNode(ParameterHandling, Node):
+class TensegrityNode(ParameterHandling, LiveStateReports, Node):
     """ROS 2 node around a core :class:`Simulator`: parameters -> its configuration,
     messages -> its calls, its outcomes -> publishers and logs.
 
@@ -169,6 +170,7 @@ class TensegrityNode(ParameterHandling, Node):
         self._names = self._declare_modules()
         self._declare_parameters()
         self._dynamics = self.get_parameter('dynamics').value
+        self._init_live_state_reports()
         self._warn_unknown_overrides()
         self._sim = self._start_simulator()
         self._player = TrajectoryPlayer(self._sim)
@@ -468,6 +470,7 @@ class TensegrityNode(ParameterHandling, Node):
             self._report(outcome)
             response.success = True
             if self._sim.pending:               # a long settle: it ends on later ticks
+                self._reset_under_way = True
                 response.message = ('reset under way: settling takes more than one tick; '
                                     'the state is published when it is reached')
             else:
@@ -600,19 +603,6 @@ class TensegrityNode(ParameterHandling, Node):
             name=f'{self.get_name()}: motion', hardware_id=self._hardware_id,
             modules=self._names, status=self._player.status))
 
-    def _publish_joint_states(self, now_ns=None):
-        """Publish the live state, stamped ``now_ns`` (the time it holds for) or now."""
-        js = self._js
-        for i in range(len(self._names)):
-            if self._dynamics:
-                live = self._sim.live(i)
-                js.set_module(i, live.rho, live.theta1, live.theta2, live.actuator_force)
-                js.set_velocity(i, live.rho_dot, live.theta1_dot, live.theta2_dot)
-            else:
-                p, eq = self._sim.module(i)
-                js.set_module(i, p.rho, eq.theta1, eq.theta2, eq.actuator_force)
-        self._js_pub.publish(js.stamped(self._now_ns() if now_ns is None else now_ns))
-
     def _publish_statuses(self):
         """equilibrium of every module (all N together, in module order), and stable if
         it changed."""
@@ -636,6 +626,7 @@ class TensegrityNode(ParameterHandling, Node):
         now = self._now_ns()
         advanced = self._player.advance(now)
         self._report(advanced)
+        self._report_progress()
         self._publish_joint_states(now)
         self._publish_head_pose()
         self._publish_tf(now)
@@ -667,6 +658,7 @@ class TensegrityNode(ParameterHandling, Node):
 
     def _publish_diagnostics(self):
         events, self._level_events = self._level_events, set()
+        progress, extra = self._progress_summary(events)
         if 'exception' in events:
             level, message = conv.ERROR, 'unexpected exception in a callback (see log)'
         elif events:
@@ -677,6 +669,7 @@ class TensegrityNode(ParameterHandling, Node):
                 parts.append('tracking failed')
             if 'deferred' in events:
                 parts.append('a command took more than one tick')
+            parts += [progress] if progress else []
             level, message = conv.WARN, ', '.join(parts) + ' since the last report'
         else:
             level, message = conv.OK, 'ok'
@@ -685,7 +678,7 @@ class TensegrityNode(ParameterHandling, Node):
         counters = dict(self._counters)
         counters['rejected_total'] = sum(v for k, v in counters.items()
                                          if k.startswith('rejected_'))
-        node_status.values = conv.key_values(sorted(counters.items()))
+        node_status.values = conv.key_values(sorted(counters.items()) + extra)
         self._publish_statuses_if_changed()
         msg = DiagnosticArray(status=[node_status] + self._last_statuses)
         msg.header.stamp = self._node_clock.now().to_msg()

@@ -80,8 +80,13 @@ def test_core_imports_only_core_the_standard_library_numpy_scipy():
         if not name.startswith('tensegrity_ros.core'):
             continue
         assert all(dep.startswith('tensegrity_ros.core') for dep in inside), (name, inside)
-        assert outside - sys.stdlib_module_names - {'__future__'} <= {'numpy', 'scipy'}, \
-            (name, outside)
+        allowed = {'numpy', 'scipy'} | COMPILED.get(name, set())
+        assert outside - sys.stdlib_module_names - {'__future__'} <= allowed, (name, outside)
+
+
+#: The one module that may compile (numba): the neck's equations of motion per
+#: evaluation, the live loop's inner loop (see its docstring for the numpy figures).
+COMPILED = {'tensegrity_ros.core.neck_kernel': {'numba'}}
 
 
 @pytest.mark.parametrize('tool', ['figures', 'problem', 'params_file', 'module_parameters'])

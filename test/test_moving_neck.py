@@ -248,3 +248,85 @@ def test_whatever_the_commands_a_moving_neck_claims_no_stable_state_and_ends_at_
     assert [sim.module(i)[0].rho for i in range(3)] == targets
     rest = settle_stack(Stack(sim.modules), np.reshape(sim.state.theta, (3, 2)))
     assert sim.state.theta == pytest.approx(rest.theta, abs=1e-6)
+
+
+# ---------------------------------------------------------------------------
+# issue 31: the dynamics mode's early warning, and what 50 Hz sampling shows of a snap
+
+def _bird_simulator():
+    limits = [ModuleLimits(0.05, 0.15, max_rho_rate=0.05)] * 3
+    return DynamicSimulator(BIRD.modules, UPRIGHT, limits, damping=[0.01] * 3)
+
+
+def _fastest(sim):
+    return max(max(abs(sim.live(i).theta1_dot), abs(sim.live(i).theta2_dot))
+               for i in range(len(sim)))
+
+
+def test_a_neck_command_at_rest_warns_of_the_fold_ahead_before_the_rods_snap():
+    """Issue 31 (3): config/neck.yaml, every max_rho_rate 0.05 m/s, damping 0.01; m2's
+    actuator to 0.12 crosses the neck's fold (0.1127, 0.65 s ahead).  As in the quasi-static
+    mode the path is tracked ahead from the rest state in the calls' leftover time and a
+    JumpAhead says where the branch ends while the actuator is still short of it and the
+    rods have not snapped (it used to stay silent); the jump at rest has the same fold."""
+    from tensegrity_ros.core.events import JumpAhead
+    sim = _bird_simulator()
+    warnings, now = list(sim.command_rho(2, 0.12, 0).of_type(JumpAhead)), 0
+    while not warnings and now < 10**9:
+        now += 20_000_000
+        warnings += sim.advance(now).of_type(JumpAhead)
+        assert _fastest(sim) < 1.0
+    [warning] = warnings
+    assert (warning.module, warning.rho, warning.end.kind) == (2, 0.12, 'fold')
+    assert sim.live(2).rho < warning.end.rho
+    static = Simulator(BIRD.modules, UPRIGHT, [ModuleLimits(0.05, 0.15)] * 3,
+                       time_budget=None)
+    [static_jump] = static.command_rho(2, 0.12, 0).of_type(Jump)
+    assert warning.end.rho == pytest.approx(static_jump.modules[2].rho, abs=1e-9)
+    jumps = []
+    while sim.moving and now < 30 * 10**9:
+        now += 20_000_000
+        jumps += sim.advance(now).of_type(Jump)
+    [jump] = jumps
+    assert jump.modules[2].rho == pytest.approx(warning.end.rho, abs=1e-12)
+
+
+def _own_local_rates(nodes, velocities):
+    """Local angle rates of every module from node positions and velocities (the test's
+    own kinematics: d/dt atan2(d) = d x d' / |d|^2)."""
+    def turn(a, b):
+        d, v = nodes[b] - nodes[a], velocities[b] - velocities[a]
+        return (d[0] * v[1] - d[1] * v[0]) / (d @ d)
+    out = []
+    for i in range(len(nodes) // 2 - 1):
+        a1, a2 = (0, 1) if i == 0 else (3 + 2 * (i - 1), 2 + 2 * (i - 1))
+        a3, a4 = 2 + 2 * i, 3 + 2 * i
+        out += [turn(a1, a3) - turn(a1, a2), turn(a1, a2) - turn(a2, a4)]
+    return np.array(out)
+
+
+def test_sampled_at_50_hz_a_neck_snap_shows_its_peak_speed_to_ten_percent():
+    """Issue 31 (2): 20 ms ticks through config/neck.yaml's fold.  The live rates (what
+    joint_states carries) are the integrated ones at the state's time: the offline
+    transient of the same profile (solve_ivp's DOP853, another integrator) read there with
+    the test's own kinematics, to 1e-6 rad/s.  Their largest |theta'| is within 10 % of the
+    jump's peak_speed (7.73 rad/s: the fastest swing lasts ~0.1 s, five ticks)."""
+    ref = simulate_neck_snap(BIRD, ACROSS_THE_FOLD, 0.05, 0.01, UPRIGHT)
+    sim = _bird_simulator()
+    sim.command_rho(2, 0.12, 0)
+    jumps, sampled, now = [], [], 0
+    while (sim.moving or now == 0) and now < 10 * 10**9:
+        now += 20_000_000
+        jumps += sim.advance(now).of_type(Jump)
+        t = sim.state_time_ns * 1e-9
+        assert t == now * 1e-9                        # not behind: the state is the tick's
+        live = np.ravel([(sim.live(i).theta1_dot, sim.live(i).theta2_dot) for i in range(3)])
+        if t <= ref.history.t[-1]:
+            y = ref.solution(t)
+            nodes = np.vstack([[0.0, 0.0], [0.09, 0.0], y[:12].reshape(-1, 2)])
+            velocities = np.vstack([[0.0, 0.0], [0.0, 0.0], y[12:].reshape(-1, 2)])
+            assert live == pytest.approx(_own_local_rates(nodes, velocities), abs=1e-6)
+        sampled.append(np.max(np.abs(live)))
+    [jump] = jumps
+    assert jump.dynamics['peak_speed'] == pytest.approx(7.73, abs=0.01)
+    assert max(sampled) >= 0.9 * jump.dynamics['peak_speed']

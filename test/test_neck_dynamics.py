@@ -91,3 +91,86 @@ def test_neck_bad_input():
                            [[-1, -1], [1, 1]])
     with pytest.raises(InvalidParameterError, match='2 values'):
         simulate_neck_snap(NECK, [0.5, 0.5, 0.5], 0.1, 0.1, [[1, 1], [1, 1]])
+
+
+def test_the_overshoot_of_a_rod_swinging_through_pi_is_read_on_continuous_angles():
+    """Issue 35: config/neck.yaml with an uneven heavy head (3.0 N down at A3, 3.1 N at A4
+    of m2), m0's actuator from 0.09 down across the neck's fold (0.0579) to 0.05 at
+    0.05 m/s, damping 0.01: m0's rod 1 swings through pi, where its wrapped angle jumps by
+    2 pi.  The overshoot was read on wrapped angles (1.423 rad); on the continuous
+    trajectory it is 0.730 rad, as MuJoCo finds.  The reference here: the history's own
+    angles unwrapped by numpy, the largest swing past the rest angle after the onset."""
+    base = dict(L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02)
+    neck = Stack((ModuleParams(rho=0.09, **base), ModuleParams(rho=0.085, **base),
+                  ModuleParams(rho=0.08, f3y=-3.0, f4y=-3.1, **base)))
+    snap = simulate_neck_snap(neck, [0.05, 0.085, 0.08], 0.05, 0.01,
+                              [[0.754, 0.754], [0.813, 0.813], [0.831, 0.831]])
+    s, h = snap.summary, snap.history
+    theta = np.unwrap(h.theta.reshape(len(h.t), -1), axis=0)
+    assert np.ptp(h.theta.reshape(len(h.t), -1)[:, 0]) > 6.0          # it wraps
+    final = np.array(s['final']['theta']).ravel()
+    final += 2 * np.pi * np.round((theta[-1] - final) / (2 * np.pi))
+    after = h.t >= s['onset_time']
+    start = theta[np.argmax(after)]
+    own = np.max((theta[after] - final) * np.sign(final - start))
+    assert s['overshoot'] == pytest.approx(0.730, abs=1e-3)
+    assert s['overshoot'] == pytest.approx(own, rel=1e-3)
+
+
+# ---------------------------------------------------------------------------
+# the compiled evaluation (numba) and the numpy one are the same equations
+
+def _uneven_neck_equations(extend_ramp):
+    from tensegrity_ros.core.neck_dynamics import NeckEquations
+    from tensegrity_ros.core.transient import RhoRamp
+    base = dict(L1=0.12, L2=0.13, ka=300.0, kb=310.0, kc=290.0, m1=0.02, m2=0.025)
+    mods = (ModuleParams(rho=0.09, **base), ModuleParams(rho=0.085, f3x=0.3, **base),
+            ModuleParams(rho=0.08, f3y=-0.5, f4y=-0.6, **base))
+    eq = settle_stack(Stack(mods), [[0.754, 0.754], [0.813, 0.813], [0.831, 0.831]])
+    ramp = RhoRamp((0.08, 0.085, 0.08), (0.09, 0.09, 0.12), 0.05)
+    return NeckEquations(Stack(mods), ramp, (0.01, 0.02, 0.03), extend_ramp), eq
+
+
+@pytest.mark.parametrize('extend_ramp', [False, True])
+def test_the_compiled_and_the_numpy_evaluations_agree(extend_ramp):
+    """Random states on and past the ramp, an uneven three-module neck: the right-hand side,
+    local angles and rates, actuator forces and the batch readings agree to rounding."""
+    from tensegrity_ros.core import neck_kernel
+    if neck_kernel.compiled() is None:
+        pytest.skip('numba is not installed (or TENSEGRITY_NO_NUMBA is set)')
+    system, eq = _uneven_neck_equations(extend_ramp)
+    rng = np.random.default_rng(5)
+    ts = np.array([0.0, 0.1, 0.5, 0.9, 1.5])
+    ys = system.start_state(eq.nodes) + rng.normal(0.0, 0.01, (len(ts), 24))
+    compiled = [system.rhs(t, y) for t, y in zip(ts, ys)], system.readings(ts, ys)
+    system._compiled = None                       # the numpy evaluation
+    numpy = [system.rhs(t, y) for t, y in zip(ts, ys)], system.readings(ts, ys)
+    assert np.array(compiled[0]) == pytest.approx(np.array(numpy[0]), rel=1e-12, abs=1e-9)
+    for a, b in zip(compiled[1], numpy[1]):
+        assert a == pytest.approx(b, rel=1e-12, abs=1e-12)
+
+
+def test_the_quasi_static_node_never_loads_numba():
+    """numba is loaded by the first live neck only: a quasi-static node of a neck (and a
+    dynamics-mode module) runs without it (a fresh interpreter, as the node's process)."""
+    import subprocess
+    import sys
+    code = """
+import sys, rclpy
+from rclpy.parameter import Parameter
+from tensegrity_ros.node import TensegrityNode
+from tensegrity_ros.core import ModuleParams
+from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
+from tensegrity_ros.core.simulator import ModuleLimits
+rclpy.init()
+node = TensegrityNode(parameter_overrides=[Parameter('modules', value=['m0', 'm1'])])
+p = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)
+sim = DynamicSimulator([p], [[-1.0, -1.0]], [ModuleLimits(0.05, 1.95, 0.1)], damping=[0.05])
+sim.command_rho(0, 0.6, 0); sim.advance(10**9)
+node.destroy_node(); rclpy.shutdown()
+print('numba' in sys.modules)
+"""
+    done = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == 'False'

@@ -20,7 +20,8 @@ ROS_PACKAGES = {'rclpy': 'rclpy', 'rcl_interfaces': 'rcl_interfaces', 'std_msgs'
                 'geometry_msgs': 'geometry_msgs', 'diagnostic_msgs': 'diagnostic_msgs',
                 'visualization_msgs': 'visualization_msgs',
                 'trajectory_msgs': 'trajectory_msgs', 'tf2_msgs': 'tf2_msgs',
-                'numpy': 'python3-numpy', 'scipy': 'python3-scipy', 'yaml': 'python3-yaml',
+                'numpy': 'python3-numpy', 'scipy': 'python3-scipy', 'numba': 'python3-numba',
+                'yaml': 'python3-yaml',
                 'ament_index_python': 'ament_index_python', 'launch': 'launch',
                 'launch_ros': 'launch_ros'}
 
@@ -39,9 +40,10 @@ def top_level_imports(path):
     return names - set(sys.stdlib_module_names) - {'tensegrity_ros', '__future__'}
 
 
-def test_the_node_never_loads_matplotlib_or_tqdm():
+def test_the_node_never_loads_the_offline_tools_dependencies():
     code = ('import sys, tensegrity_ros.node, tensegrity_ros.params_file; '
-            'print(sorted(m for m in ("matplotlib", "tqdm") if m in sys.modules))')
+            'print(sorted(m for m in ("matplotlib", "tqdm", "dask", "distributed") '
+            'if m in sys.modules))')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          check=True, cwd=ROOT)
     assert out.stdout.strip() == '[]', out
@@ -83,8 +85,10 @@ def test_setup_declares_the_tools_extra():
                 and getattr(n.func, 'id', '') == 'setup')
     keywords = {k.arg: ast.literal_eval(k.value) for k in call.keywords
                 if k.arg in ('install_requires', 'extras_require')}
-    assert set(keywords['install_requires']) == {'setuptools', 'numpy', 'scipy', 'PyYAML'}
-    assert set(keywords['extras_require']['tools']) == {'matplotlib', 'tqdm'}
+    assert set(keywords['install_requires']) == {'setuptools', 'numpy', 'scipy', 'numba',
+                                                 'PyYAML'}
+    tools = set(keywords['extras_require']['tools'])
+    assert tools == {'matplotlib', 'tqdm', 'dask', 'distributed'}
     pinned = {line.split('==')[0].lower() for line in
               (ROOT / 'requirements.txt').read_text().splitlines() if '==' in line}
     assert {'matplotlib', 'tqdm', 'ros-ament-flake8', 'ros-ament-pep257'} <= pinned

@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from tensegrity_ros.core import ModuleParams, simulate_snap
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
-from tensegrity_ros.core.events import Jump, REFUSED
+from tensegrity_ros.core.events import Jump, JumpAhead, REFUSED
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 
 FIG8A = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)
@@ -125,7 +125,7 @@ def test_a_load_change_moves_the_rods_from_where_they_are():
     run(sim, 0, 20 * 10**9)
     params, eq = sim.module(0)
     assert params.f3y == 4.0 and sim.stable
-    static = Simulator([FIG8A], [LOWER], [LIMITS])
+    static = Simulator([FIG8A], [LOWER], [LIMITS], time_budget=None)
     static.set_force(0, 'a3', (0.0, 4.0), 0)
     assert [eq.theta1, eq.theta2] == pytest.approx(
         [static.state.theta1, static.state.theta2], abs=1e-9)
@@ -156,7 +156,7 @@ def test_heavy_damping_lands_where_the_quasi_static_simulator_lands():
     sim = make(damping=5.0)
     sim.command_rho(0, 0.9, 0)
     [jump], _ = run(sim, 0, 60 * 10**9)
-    static = Simulator([FIG8A], [LOWER], [ModuleLimits(0.05, 1.95)])    # one path
+    static = Simulator([FIG8A], [LOWER], [ModuleLimits(0.05, 1.95)], time_budget=None)  # one path
     [static_jump] = static.command_rho(0, 0.9, 0).of_type(Jump)
     assert (jump.kind, jump.modules[0].rho) == (static_jump.kind, static_jump.modules[0].rho)
     # the quasi-static to_theta is the landing at the fold's rho; the dynamic one is the
@@ -180,10 +180,146 @@ def test_a_fold_crept_across_below_the_onset_speed_is_still_a_jump():
             top['speed'] = max(top['speed'], abs(live.theta1_dot), abs(live.theta2_dot))
 
     [jump], _ = run(sim, 0, 30 * 10**9, during)
-    static = Simulator([FIG8A], [LOWER], [ModuleLimits(0.05, 1.95)])
+    static = Simulator([FIG8A], [LOWER], [ModuleLimits(0.05, 1.95)], time_budget=None)
     [static_jump] = static.command_rho(0, 0.9, 0).of_type(Jump)
     assert 0.1 < top['speed'] < 1.0
     assert (jump.kind, jump.modules[0].rho) == (static_jump.kind, static_jump.modules[0].rho)
     assert jump.dynamics['onset_rho'] is None and jump.dynamics['peak_speed'] is None
     assert not jump.dynamics['lands_elsewhere'] and jump.dynamics['settled']
     assert sim.state.theta == pytest.approx(static.state.theta, abs=1e-9)
+
+
+def test_an_exactly_symmetric_module_past_c1_snaps_live_and_reports_the_jump():
+    """Issue 35: fig. 8a (symmetric bit for bit) ramped down through its branch point C1
+    to 0.1 at 0.1 m/s: the rods used to creep on the unstable symmetric branch for ever
+    (no jump, the dynamics mode never at rest); with the built-in imperfection they snap
+    as the one-shot simulation does (MuJoCo: peak 33.4 rad/s) and the jump is reported
+    at rest, the tracker's branch point beside it."""
+    ref = simulate_snap(FIG8A, 0.1, RATE, 0.01, LOWER).summary
+    sim = make(damping=0.01)
+    assert sim.command_rho(0, 0.1, 0).accepted
+    jumps, now = [], 0
+    while (sim.moving or now == 0) and now < 120 * 10**9:
+        now += TICK_NS
+        jumps += sim.advance(now).of_type(Jump)
+    [jump] = jumps
+    assert jump.kind == 'branch_point' and jump.modules[0].rho == pytest.approx(0.1514, abs=1e-4)
+    assert jump.dynamics['peak_speed'] == pytest.approx(33.4, rel=5e-3)
+    assert jump.dynamics['onset_time'] == pytest.approx(ref['onset_time'], rel=1e-4)
+    assert jump.dynamics['peak_speed'] == pytest.approx(ref['peak_speed'], rel=1e-5)
+    assert jump.to_theta[0][0] > 1.0 and sim.stable and not jump.dynamics['lands_elsewhere']
+
+
+# ---------------------------------------------------------------------------
+# issue 31: bounded work, faithful state times, deferred operations that complete
+
+class CountingClock:
+    """A clock that advances one unit each time it is read: a time budget of n units is n
+    readings (one per 2 ms sample of the integration, one per tracker check point), the
+    same on any machine."""
+
+    def __init__(self):
+        self.now = 0
+
+    def __call__(self):
+        self.now += 1
+        return self.now
+
+
+def _drive(sim, until_ns, tick_ns=TICK_NS, start_ns=0, during=None):
+    """advance() every tick; (jumps, every call's (now, state_time_ns, lag))."""
+    jumps, calls = [], []
+    for now in range(start_ns + tick_ns, until_ns + 1, tick_ns):
+        jumps += sim.advance(now).of_type(Jump)
+        calls.append((now, sim.state_time_ns, sim.lag))
+        if during is not None:
+            during(sim, now)
+    return jumps, calls
+
+
+def test_a_call_integrates_within_its_budget_the_simulation_lags_then_catches_up():
+    """Fig. 8a's fold, 50 ms ticks, a budget of 10 clock readings a call (a counting
+    clock): each call integrates at most ~10 samples of 2 ms, 20 of the 50 ms that pass,
+    so the simulation falls behind: the live state holds for state_time_ns, earlier than
+    the call, ``lag`` says by how much and ``lagging_calls`` counts.  With the budget back
+    it catches up, and ends exactly as an unbounded simulation of the same commands (the
+    integration stops only between samples; VODE never restarts there)."""
+    clock = CountingClock()
+    sim = DynamicSimulator([FIG8A], [LOWER], [LIMITS], damping=[DAMPING], time_budget=10,
+                           clock=clock)
+    ref = make()
+    assert sim.command_rho(0, 0.9, 0).accepted and ref.command_rho(0, 0.9, 0).accepted
+    _, calls = _drive(sim, 4 * 10**9)
+    progress = np.diff([0] + [t for _, t, _ in calls])
+    assert np.max(progress) <= 11 * 2_000_000             # <= ~10 samples a call
+    now, state_time, lag = calls[-1]
+    assert state_time < now and lag == pytest.approx((now - state_time) * 1e-9)
+    assert sim.lagging_calls == len(calls)
+    ref_jumps, _ = _drive(ref, state_time, tick_ns=state_time)   # one unbounded call
+    assert sim.live(0) == ref.live(0)                      # the state at its own time
+    sim.time_budget = None
+    jumps, calls = _drive(sim, 40 * 10**9, start_ns=4 * 10**9)
+    assert calls[-1][2] == 0.0 and calls[-1][1] == 40 * 10**9     # caught up
+    ref_jumps, _ = _drive(ref, 40 * 10**9, start_ns=4 * 10**9)     # the same ticks
+    [jump], [ref_jump] = jumps, ref_jumps
+    assert jump.dynamics == ref_jump.dynamics and np.array_equal(jump.to_theta,
+                                                                 ref_jump.to_theta)
+
+
+def test_commands_and_changes_given_while_the_simulation_lags_act_at_their_own_time():
+    """A lagging simulation (2 clock readings a call) gets a command and a load change at
+    times it has not reached: they wait and act at those times, as in an unbounded one."""
+    sim = DynamicSimulator([FIG8A], [LOWER], [LIMITS], damping=[0.5], time_budget=2,
+                           clock=CountingClock())
+    ref = make(damping=0.5)
+    for s in (sim, ref):
+        s.command_rho(0, 0.9, 0)
+    _drive(sim, 10**9)
+    assert sim.state_time_ns < 10**9
+    for s in (sim, ref):
+        assert s.command_rho(0, 0.7, 10**9).accepted
+        assert s.set_force(0, 'a3', (0.0, 4.0), 15 * 10**8).accepted
+    _drive(ref, 10**9, start_ns=0, tick_ns=10**9)
+    sim.time_budget = None
+    _drive(sim, 30 * 10**9, start_ns=10**9)
+    _drive(ref, 30 * 10**9, start_ns=10**9)
+    assert not sim.moving and sim.modules == ref.modules and sim.modules[0].f3y == 4.0
+    assert sim.state.theta == pytest.approx(ref.state.theta, abs=1e-12)
+
+
+def test_a_reset_that_needs_more_than_one_call_completes():
+    """The issue's case: fig. 8a, rate 0.5 m/s, damping 0.5, command 0.95 and 2 s of 20 ms
+    ticks (snapped); a reset whose settle overruns a budget of 1e-9 s is deferred; with
+    the budget back it completes within a few ticks (it used to stay pending for ever,
+    the rods in the snapped state)."""
+    sim = DynamicSimulator([ModuleParams.paper(0.5, F3=5, F4=5).with_(m1=0.05, m2=0.05)],
+                           [[-1.0, -1.0]], [ModuleLimits(rho_min=0.05, rho_max=1.95,
+                                                         max_rho_rate=0.5)], damping=(0.5,))
+    sim.command_rho(0, 0.95, 0)
+    for now in range(20_000_000, 2 * 10**9 + 1, 20_000_000):
+        sim.advance(now)
+    assert sim.live(0).theta1 > 0                          # snapped up
+    sim.time_budget = 1e-9
+    assert sim.reset([FIG8A.with_(rho=0.5)], [[-1.0, -1.0]]).accepted
+    assert sim.pending
+    sim.time_budget = 0.05
+    now, ticks = 2 * 10**9, 0
+    while sim.pending and ticks < 200:
+        now, ticks = now + 20_000_000, ticks + 1
+        sim.advance(now)
+    assert not sim.pending and ticks <= 5
+    assert sim.modules[0].rho == 0.5 and sim.state.theta[0] < 0 and sim.stable
+    assert not sim.moving and sim.live(0).theta1 == sim.state.theta1
+    assert sim.command_rho(0, 0.6, now).accepted and sim.moving     # and it moves on
+
+
+def test_a_module_command_beyond_its_fold_warns_at_once():
+    """The early warning of the quasi-static mode (the exact operation range) for a command
+    given at rest; none for one given while the rods move (the live branch is not known)."""
+    sim = make()
+    warnings = sim.command_rho(0, 0.9, 0).of_type(JumpAhead)
+    assert len(warnings) == 1 and warnings[0].end.kind == 'fold'
+    assert warnings[0].end.rho == pytest.approx(simulate_snap(FIG8A, 0.9, RATE, DAMPING,
+                                                              LOWER).static_fold_rho)
+    run(sim, 0, 10**9)
+    assert not sim.command_rho(0, 0.95, 10**9).of_type(JumpAhead)

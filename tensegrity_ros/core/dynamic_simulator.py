@@ -11,21 +11,39 @@ the rods move the state is not a verified equilibrium (``stable`` is False, ``st
 positive definite) and becomes the simulator's state, and a snap on the way is a
 :class:`~.events.Jump` whose ``dynamics`` holds the figures (onset_rho, peak_speed,
 peak_actuator_force, overshoot, settle_time, final) beside the quasi-static prediction.
+
+Bounded work, as in the quasi-static mode: a call works at most ``time_budget`` seconds
+(of ``clock``).  The integration stops at the first sample past it: the live state then
+holds for an earlier time than the call's (:attr:`DynamicSimulator.state_time_ns`),
+:attr:`~DynamicSimulator.lag` says by how much and the next calls catch up.  Commands and
+changes act at their own time even when the integration has not reached it yet.  The
+verification of a rest state and the quasi-static prediction beside its jump, the path
+tracked ahead for an early warning and a reset's settle go on over several calls the same
+way (:mod:`.bounded_work`).
+
+Early warnings (:class:`~.events.JumpAhead`), by the quasi-static mode's rule: a command
+given at rest to a target beyond the live branch's end.  One module: its exact operation
+range, at once.  A neck: the commanded path is tracked ahead (from the rest state, in the
+calls' leftover time); a jump on it is warned of if the actuator has not reached it yet.
+The same tracked path is the quasi-static prediction when the rods come to rest.
 """
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import events as ev
-from .events import Outcome
+from .bounded_work import Job
+from .events import BranchEnd, JumpAhead, Outcome
 from .mechanisms import head_of, stack_module_nodes
 from .moving_module import MovingModule
 from .moving_neck import MovingNeck
-from .simulator import SOLVER_ERRORS, Simulator
+from .simulator import (DEFAULT_TIME_BUDGET, DEFAULT_WORK_LIMIT, SOLVER_ERRORS, Simulator)
 from .tolerances import DEFINITENESS_TOL
 from .stack import Stack
 from .transient import SAME_LANDING, wrap
@@ -53,16 +71,64 @@ def _per_module(value):
     return tuple(float(v) for v in np.atleast_1d(value))
 
 
+class _Forecast:
+    """The quasi-static path of a command given at rest, tracked ahead in a Job: its
+    first jump is the early warning, its result the prediction beside the snap."""
+
+    __slots__ = ('start', 'state', 'end', 'job', 'index', 'rho', 'cause', 'warned')
+
+    def __init__(self, start, state, end, job, index, rho, cause):
+        self.start, self.state, self.end, self.job = start, state, end, job
+        self.index, self.rho, self.cause, self.warned = index, rho, cause, False
+
+    def warning(self, rho):
+        """The JumpAhead of the tracked path's first jump if the actuator, at ``rho`` now,
+        has not reached it yet; None otherwise (or if tracking failed: the motion will
+        meet the trouble and report it)."""
+        try:
+            motion = self.job.result()
+        except SOLVER_ERRORS:
+            return None
+        if not motion.jumps:
+            return None
+        kind, _, critical, from_theta, _, _, _ = motion.jumps[0]
+        end_rho = float(critical[self.index].rho)
+        if (end_rho - rho) * (self.rho - rho) <= 0.0:
+            return None                 # already there: the snap says it
+        end = BranchEnd(rho=end_rho, kind=kind, modules=tuple(critical),
+                        theta=np.reshape(from_theta, (-1, 2)))
+        return JumpAhead(module=self.index, rho=self.rho, end=end, cause=self.cause)
+
+
+class _Arrival:
+    """Rods that came to rest, being verified (settled where they rest) and compared with
+    the quasi-static prediction, each a Job run in the calls' time budgets."""
+
+    __slots__ = ('start', 'start_state', 'end', 'reporting', 'cause', 'trigger', 'settling',
+                 'predicting')
+
+    def __init__(self, start, start_state, end, reporting, cause, trigger, settling,
+                 predicting):
+        self.start, self.start_state, self.end = start, start_state, end
+        self.cause, self.trigger = cause, trigger
+        self.reporting, self.settling, self.predicting = reporting, settling, predicting
+
+    def jobs(self):
+        return self.reporting, self.settling, self.predicting
+
+
 class DynamicSimulator(Simulator):
     """A module or a neck (rod masses m1, m2 > 0 in every module), pivot ``damping``
-    (one value per module, N m s/rad) and actuator speed limits max_rho_rate > 0.
+    (one value per module, N m s/rad) and actuator speed limits max_rho_rate > 0;
+    ``time_budget``, ``work_limit`` and ``clock`` as :class:`~.simulator.Simulator`'s.
 
     Raises ValueError (InvalidParameterError) for missing masses, a speed limit of 0 or a
     bad damping.
     """
 
     def __init__(self, modules, initial_theta, limits=None, names=None,
-                 damping=(DEFAULT_DAMPING,)):
+                 damping=(DEFAULT_DAMPING,), *, time_budget=DEFAULT_TIME_BUDGET,
+                 work_limit=DEFAULT_WORK_LIMIT, clock=time.perf_counter):
         modules = tuple(modules)
         damping = tuple(damping)
         if len(damping) != len(modules):
@@ -74,14 +140,25 @@ class DynamicSimulator(Simulator):
         self._epoch_ns = None
         self._cause = ''
         self._trigger = 0               # the module whose command started the motion
-        super().__init__(modules, initial_theta, limits, names)
+        self._moving = None
+        self._in_motion = False         # the moving mechanism left its last verified rest
+        self._forecast = None           # a _Forecast, or None
+        self._arrival = None            # an _Arrival, or None
+        self._after_reset = []          # calls made while a reset settles, replayed after
+        #: Seconds the live state is behind the last call's time (0: caught up).
+        self.lag = 0.0
+        #: Calls that ended behind their time (the simulation could not keep up).
+        self.lagging_calls = 0
+        super().__init__(modules, initial_theta, limits, names, time_budget=time_budget,
+                         work_limit=work_limit, clock=clock)
 
     # -- what it is now -------------------------------------------------------------------
 
     @property
     def moving(self):
-        """True while the rods are not at rest at the actuators' targets."""
-        return self._moving.moving
+        """True while the rods are not at rest at the actuators' targets (or their rest
+        is still being verified)."""
+        return self._moving.moving or self._arrival is not None
 
     @property
     def damping(self):
@@ -92,6 +169,14 @@ class DynamicSimulator(Simulator):
     def stable(self):
         """False while the rods move: no verified equilibrium is claimed then."""
         return super().stable and not self.moving
+
+    @property
+    def state_time_ns(self):
+        """The time (ns, of the calls' clock) the live state holds for: the last call's
+        time, or earlier while the simulation lags; None before the first call."""
+        if self._epoch_ns is None:
+            return None
+        return self._epoch_ns + int(round(self._moving.t * 1e9))
 
     def live(self, index):
         """The :class:`LiveState` now: the moving rods, or the verified rest state."""
@@ -120,7 +205,7 @@ class DynamicSimulator(Simulator):
         return head_of(self.module_nodes(len(self) - 1)) if self.moving else super().head()
 
     def target(self, index):
-        return _per_module(self._moving.target)[index] if self.moving else None
+        return _per_module(self._moving.latest('target'))[index] if self.moving else None
 
     def status(self, index):
         """As :meth:`Simulator.status`; while the rods move, ``warn`` "in motion" with the
@@ -134,7 +219,8 @@ class DynamicSimulator(Simulator):
 
     def limits_refusal(self, index, rho_min, rho_max):
         refusal = super().limits_refusal(index, rho_min, rho_max)
-        rho, target = _per_module(self._moving.rho)[index], _per_module(self._moving.target)[index]
+        rho = _per_module(self._moving.rho)[index]
+        target = _per_module(self._moving.latest('target'))[index]
         if not refusal and not (rho_min <= rho <= rho_max and rho_min <= target <= rho_max):
             refusal = (f'the moving actuator (rho={rho!r}, target {target!r}) is outside '
                        f'the requested [rho_min, rho_max] = [{rho_min!r}, {rho_max!r}]')
@@ -144,21 +230,29 @@ class DynamicSimulator(Simulator):
 
     def command_rhos(self, targets, now_ns, cause='joint_commands'):
         """Actuator targets {module index: rho}: each actuator heads there at its
-        max_rho_rate from where it is now (a neck's all arrive together), the rods keep
-        their momentum.  Refused (nothing changes) as in the quasi-static mode."""
+        max_rho_rate from where it is at ``now_ns`` (a neck's all arrive together), the
+        rods keep their momentum.  Refused (nothing changes) as in the quasi-static mode."""
         if not targets:
             return Outcome()
         refusal = self.rhos_refusal(targets)
         if refusal is not None:
             return refusal
-        warnings = self._jumps_ahead(targets, cause)
-        arrived = self._advance_to(self._seconds(now_ns))
-        full = list(_per_module(self._moving.target))
+        if self.pending:                                   # a reset settles: after it
+            return self._later(lambda now: self.command_rhos(targets, now, cause))
+        self._start_call()
+        at_rest = not self.moving
+        warnings = self._jumps_ahead(targets, cause) if at_rest else ()
+        full = list(_per_module(self._moving.latest('target')))
         for index, rho in targets.items():
             full[index] = float(rho)
         self._cause, self._trigger = cause, next(iter(targets))
-        self._moved(lambda t: self._moving.command(self._packed(full), t), now_ns)
-        return Outcome(status=arrived.status, events=warnings + arrived.events)
+        self._drop_forecast()
+        t = self._seconds(now_ns)
+        reports = self._moving.command(self._packed(full), t, self._deadline, self._clock)
+        if at_rest:
+            self._start_forecast(full, cause)
+        outcome = self._after_integration(reports, t, at_rest)
+        return _with_events(outcome, warnings, first=True)
 
     def set_parameters(self, changes, now_ns, cause):
         """New design or loads: the rods move on from where they are under them."""
@@ -167,18 +261,24 @@ class DynamicSimulator(Simulator):
         refusal = self.parameters_refusal(changes)
         if refusal is not None:
             return refusal
-        modules = list(self._moving_modules())
+        modules = list(self._latest_modules())
         for index, fields in changes.items():
             modules[index] = modules[index].with_(**fields)
             if not (modules[index].m1 > 0.0 and modules[index].m2 > 0.0):
                 return ev.refused(ev.PARAMETER_VALUE, (
                     f'dynamics mode needs rod masses m1, m2 > 0 (kg), got {self.names[index]} '
                     f'm1={modules[index].m1!r}, m2={modules[index].m2!r}'))
-        arrived = self._advance_to(self._seconds(now_ns))
+        if self.pending:
+            return self._later(lambda now: self.set_parameters(changes, now, cause))
+        self._start_call()
+        at_rest = not self.moving
         self._cause, self._trigger = cause, next(iter(changes))
+        self._drop_forecast()
         design = modules[0] if len(modules) == 1 else Stack(tuple(modules))
-        self._moved(lambda t: self._moving.change(t, params=design), now_ns)
-        return arrived
+        t = self._seconds(now_ns)
+        reports = self._moving.change(t, params=design, deadline=self._deadline,
+                                      clock=self._clock)
+        return self._after_integration(reports, t, at_rest)
 
     def set_limits(self, index, limits, now_ns):
         """As :meth:`Simulator.set_limits`; max_rho_rate must stay > 0 (the actuator's speed)."""
@@ -186,33 +286,61 @@ class DynamicSimulator(Simulator):
             return ev.refused(ev.PARAMETER_VALUE, f'dynamics mode needs max_rho_rate > 0 '
                                                   f'(the actuator speed), got '
                                                   f'{limits.max_rho_rate!r}')
-        arrived = self._advance_to(self._seconds(now_ns))
         outcome = super().set_limits(index, limits, now_ns)
-        if outcome.accepted:
-            rates = list(_per_module(self._moving.max_rate))
-            rates[index] = limits.max_rho_rate
-            self._moving.change(self._moving.t, max_rate=self._packed(rates))
-        return ev.combined([arrived, outcome]) if outcome.accepted else outcome
+        if not outcome.accepted:
+            return outcome
+        rates = list(_per_module(self._moving.latest('max_rate')))
+        rates[index] = limits.max_rho_rate
+        t = self._seconds(now_ns)
+        reports = self._moving.change(t, max_rate=self._packed(rates),
+                                      deadline=self._deadline, clock=self._clock)
+        return ev.combined([outcome, self._after_integration(reports, t, not self.moving)])
 
     def set_damping(self, index, damping, now_ns):
         """Pivot damping of one module (N m s/rad, > 0 and finite) from ``now_ns`` on."""
         if _damping_problem(damping):
             return ev.refused(ev.PARAMETER_VALUE, _damping_problem(damping))
-        arrived = self._advance_to(self._seconds(now_ns))
+        if self.pending:
+            return self._later(lambda now: self.set_damping(index, damping, now))
+        self._start_call()
         values = list(self._damping)
         values[index] = float(damping)
-        self._moved(lambda t: self._moving.change(t, damping=self._packed(values)), now_ns)
         self._damping = tuple(values)
-        return arrived
+        at_rest = not self.moving
+        t = self._seconds(now_ns)
+        reports = self._moving.change(t, damping=self._packed(values), deadline=self._deadline,
+                                      clock=self._clock)
+        return self._after_integration(reports, t, at_rest)
 
     def advance(self, now_ns):
-        """Integrate the motion up to ``now_ns``; a snap that came to rest is a Jump."""
-        return self._advance_to(self._seconds(now_ns))
+        """Integrate the motion towards ``now_ns`` within the call's time budget; a snap
+        that came to rest (and was verified) is a Jump.  A reset still settling goes on."""
+        self._start_call()
+        if self.pending:
+            done = self._continue()
+            if self.pending:
+                return done
+            later, self._after_reset = self._after_reset, []
+            return ev.combined([done] + [call(now_ns) for call in later])
+        t = self._seconds(now_ns)
+        reports = self._moving.advance(t, self._deadline, self._clock)
+        return self._after_integration(reports, t, False)
 
     def reset(self, modules, initial_theta):
-        """As :meth:`Simulator.reset`; the rods start at rest in the reset state."""
-        outcome = super().reset(modules, initial_theta)
-        if outcome.accepted:
+        """As :meth:`Simulator.reset`; the rods start at rest in the reset state.  Calls
+        made while a long settle goes on are applied once it ends."""
+        for job in self._pending_jobs():
+            job.cancel()
+        self._forecast = self._arrival = None
+        self._after_reset = []
+        return super().reset(modules, initial_theta)
+
+    # -- inside ---------------------------------------------------------------------------
+
+    def _finish_reset(self, motion):
+        """The settled start state, and the rods at rest in it."""
+        outcome = super()._finish_reset(motion)
+        if outcome.status == ev.OK:
             rates = [slot.limits.max_rho_rate for slot in self._slots]
             thetas = np.reshape(self.state.theta, (-1, 2))
             if len(self.modules) == 1:
@@ -220,18 +348,29 @@ class DynamicSimulator(Simulator):
                                             rates[0])
             else:
                 self._moving = MovingNeck(Stack(self.modules), thetas, self._damping, rates)
-            self._epoch_ns = None
+            self._moving.lazy_reports = True    # worked off in the calls' budgets
+            self._epoch_ns, self._in_motion, self.lag = None, False, 0.0
         return outcome
 
-    # -- inside ---------------------------------------------------------------------------
+    def _later(self, call):
+        """Keep a call made while a reset settles; it is made when the reset is done."""
+        self._after_reset.append(call)
+        return Outcome()
+
+    def _pending_jobs(self):
+        if self._forecast is not None:
+            yield self._forecast.job
+        if self._arrival is not None:
+            yield from self._arrival.jobs()
 
     def _packed(self, values):
         """Per-module values as the moving mechanism takes them (one module: a float)."""
         return values[0] if len(self) == 1 else tuple(values)
 
-    def _moving_modules(self):
-        """The moving mechanism's modules (their rho is the simulator's business)."""
-        params = self._moving.params
+    def _latest_modules(self):
+        """The moving mechanism's modules as the last change sets them (their rho is the
+        simulator's business)."""
+        params = self._moving.latest('params')
         return params.modules if isinstance(params, Stack) else (params,)
 
     def _seconds(self, now_ns):
@@ -240,40 +379,114 @@ class DynamicSimulator(Simulator):
             self._epoch_ns = now_ns - int(round(self._moving.t * 1e9))
         return max((now_ns - self._epoch_ns) * 1e-9, self._moving.t)
 
-    def _moved(self, change, now_ns):
-        """Apply a change to the moving mechanism at ``now_ns``; a status change bumps the
-        revision."""
-        was = self.moving
-        change(self._seconds(now_ns))
-        if self.moving != was:
-            self.revision += 1
+    def _after_integration(self, reports, t, was_at_rest):
+        """After the moving mechanism was integrated towards ``t``: the lag, a rest to
+        verify, and the jobs (forecast, verification) in the call's leftover time."""
+        self.lag = max(t - self._moving.t, 0.0)
+        if self.lag > 0.0:
+            self.lagging_calls += 1
+        if self._moving.moving:
+            if not self._in_motion:
+                self._in_motion = True
+                self.revision += 1                # the status now says "in motion"
+        elif self._in_motion:
+            self._in_motion = False
+            self._arrive(reports[-1] if reports else None)
+        events = self._forecast_warnings()
+        self._hint_rest()
+        outcome = self._arrival_outcome()
+        return _with_events(outcome, events, first=True)
 
-    def _advance_to(self, t):
-        """Integrate to ``t``; if the rods came to rest, verify the rest state."""
-        was = self.moving
-        reports = self._moving.advance(t)
-        if not was or self.moving:
-            return Outcome()
-        self.revision += 1
-        return self._came_to_rest(reports[-1] if reports else None)
+    # -- the path ahead: early warning and prediction -------------------------------------
 
-    def _came_to_rest(self, report):
-        """The rest state becomes the verified state; a snap on the way is a Jump."""
-        m = self._moving
-        end = tuple(p.with_(rho=r) for p, r in zip(self._moving_modules(), _per_module(m.rho)))
+    def _start_forecast(self, targets, cause):
+        """Track the commanded path from the rest state ahead (a Job)."""
+        end = tuple(m.with_(rho=float(r)) for m, r in zip(self.modules, targets))
+        job = _on_its_own_thread(Job(functools.partial(
+            self._mechanism.track, self.modules, end, self.state), self._clock))
+        self._forecast = _Forecast(self.modules, self.state, end, job, self._trigger,
+                                   float(targets[self._trigger]), cause)
+
+    def _drop_forecast(self):
+        """A new command or change: the path tracked ahead no longer holds."""
+        if self._forecast is not None and (self._arrival is None or
+                                           self._arrival.predicting is not self._forecast.job):
+            self._forecast.job.cancel()
+        self._forecast = None
+
+    def _forecast_warnings(self):
+        """Work on the forecast; once done, a neck's early warning if its path jumps ahead
+        of where the actuator is (a module's came from its exact range at once)."""
+        look = self._forecast
+        if look is None or look.warned or not look.job.run(self._deadline):
+            return ()
+        look.warned = True
+        if self._mechanism.has_operation_range:
+            return ()
+        warning = look.warning(_per_module(self._moving.rho)[look.index])
+        return () if warning is None else (warning,)
+
+    def _hint_rest(self):
+        """Give the moving mechanism the forecast's landing as the likely rest state (if
+        the rods come to rest there, no second settle is needed)."""
+        look, m = self._forecast, self._moving
+        if look is None or not look.job.done or m.rest_hint is not None or m.has_queued:
+            return
         try:
-            eq = self._mechanism.settle(end, np.reshape(m.theta, (-1, 2)))
+            motion = look.job.result()
+        except SOLVER_ERRORS:
+            return
+        end = tuple(p.with_(rho=r) for p, r in zip(self._latest_modules(),
+                                                   _per_module(m.latest('target'))))
+        if motion.status == 'ok' and tuple(motion.end) == end:
+            m.rest_hint = motion.final
+
+    # -- coming to rest ---------------------------------------------------------------------
+
+    def _arrive(self, report):
+        """The rods came to rest: the snap's figures (``report``, a function computing
+        them, or None), the verification of the rest state and the prediction, in Jobs."""
+        m = self._moving
+        end = tuple(p.with_(rho=r) for p, r in zip(self._latest_modules(), _per_module(m.rho)))
+        thetas = np.reshape(m.theta, (-1, 2)).copy()
+        found = m.rest.eq if m.rest is not None else None      # settled where they rest
+        settling = Job((lambda: found) if found is not None else functools.partial(
+            self._mechanism.settle, end, thetas), self._clock)
+        look = self._forecast
+        if look is not None and look.start == self.modules and look.state is self.state \
+                and look.end == end:
+            predicting = look.job
+        else:
+            predicting = _on_its_own_thread(Job(functools.partial(
+                self._mechanism.track, self.modules, end, self.state), self._clock))
+        creep = self._creep_report()
+        reporting = Job(report if report is not None else (lambda: creep), self._clock)
+        self._arrival = _Arrival(self.modules, self.state, end, reporting, self._cause,
+                                 self._trigger, settling, predicting)
+
+    def _arrival_outcome(self):
+        """Work on the rest's verification and prediction; once both are done, the rest
+        state becomes the verified state and a snap on the way is a Jump."""
+        arrival = self._arrival
+        if arrival is None or not all(job.run(self._deadline) for job in arrival.jobs()):
+            return Outcome()
+        self._arrival = None
+        try:
+            eq = arrival.settling.result()
         except SOLVER_ERRORS as exc:
-            return self._failed(self._trigger,
-                                f'{self._cause}: no equilibrium where the rods rest: {exc}')
+            return self._failed(arrival.trigger,
+                                f'{arrival.cause}: no equilibrium where the rods rest: {exc}')
         if not eq.eigenvalues[0] > DEFINITENESS_TOL * abs(eq.eigenvalues[-1]):
-            return self._failed(self._trigger, f'{self._cause}: the rods rest on an unstable '
-                                               f'state')
-        start, start_state = self.modules, self.state
-        self._set_state(end, eq)
+            return self._failed(arrival.trigger, f'{arrival.cause}: the rods rest on an '
+                                                 f'unstable state')
+        self._set_state(arrival.end, eq)
         for slot in self._slots:
             slot.tracking = 'ok'
-        jump = self._snap_jump(start, start_state, eq, report or self._creep_report())
+        try:
+            motion = arrival.predicting.result()
+        except SOLVER_ERRORS:
+            motion = None
+        jump = self._snap_jump(arrival, eq, motion)
         return Outcome(events=(jump,)) if jump is not None else Outcome()
 
     def _creep_report(self):
@@ -284,31 +497,61 @@ class DynamicSimulator(Simulator):
         report.update(settled=True, final=self._moving.final_state())
         return report
 
-    def _snap_jump(self, start, start_state, eq, report):
+    def _snap_jump(self, arrival, eq, motion):
         """A Jump for a snap that came to rest, with the quasi-static prediction of the
-        same change beside it; None if the rods only moved fast along their branch."""
-        try:
-            motion = self._mechanism.track(start, self.modules, start_state)
-            predicted = np.reshape(np.asarray(motion.final.theta, dtype=float), (-1, 2))
-            raw = motion.jumps[0] if motion.jumps else None
-        except SOLVER_ERRORS:
-            predicted, raw = None, None
+        same change (``motion``, or None if the tracker failed) beside it; None if the rods
+        only moved fast along their branch."""
+        report = arrival.reporting.result()
         landing = np.reshape(np.asarray(eq.theta, dtype=float), (-1, 2))
-        elsewhere = predicted is None or bool(
-            np.max(np.abs(wrap(landing - predicted))) > SAME_LANDING)
-        if raw is None and (not elsewhere or report['onset_rho'] is None):
-            return None         # fast along its branch, or slow with no fold on the way
-        onset_rhos = (_per_module(report['onset_rho']) if report['onset_rho'] is not None
-                      else tuple(p.rho for p in start))
-        if raw is None:     # inertia alone: no fold on the quasi-static path
-            raw = ('inertial', 1.0, tuple(p.with_(rho=r) for p, r in zip(start, onset_rhos)),
-                   np.reshape(start_state.theta, (-1, 2)), None, False, None)
-        kind, s, critical, from_theta, _, ambiguous, _ = raw
+        found = _critical_point(report, arrival, motion, landing)
+        if found is None:
+            return None
+        (kind, s, critical, from_theta, _, ambiguous, _), predicted, elsewhere = found
         # (the rods rest in an equilibrium of the parameters now, not of the critical ones)
         jump = self._record_jump((kind, s, critical, from_theta, landing, ambiguous,
-                                  tuple(self.modules)), self._trigger, self._cause)
-        return dataclasses.replace(jump, dynamics=_figures(report, self._trigger, predicted,
+                                  tuple(self.modules)), arrival.trigger, arrival.cause)
+        return dataclasses.replace(jump, dynamics=_figures(report, arrival.trigger, predicted,
                                                            elsewhere))
+
+
+def _critical_point(report, arrival, motion, landing):
+    """(the jump's critical point as the tracker's raw jump, the predicted landing or None,
+    whether the rods landed elsewhere), or None if the motion was no jump: fast along its
+    branch, or slow with no fold on the way.  With no fold on the quasi-static path but a
+    landing elsewhere, inertia alone made the jump: ``inertial``, from the last rest state
+    at the onset's actuator lengths."""
+    predicted = raw = None
+    if motion is not None:
+        predicted = np.reshape(np.asarray(motion.final.theta, dtype=float), (-1, 2))
+        raw = motion.jumps[0] if motion.jumps else None
+    elsewhere = predicted is None or bool(
+        np.max(np.abs(wrap(landing - predicted))) > SAME_LANDING)
+    if raw is None and (not elsewhere or report['onset_rho'] is None):
+        return None
+    if raw is None:
+        start = arrival.start
+        onset_rhos = _per_module(report['onset_rho'])
+        raw = ('inertial', 1.0, tuple(p.with_(rho=r) for p, r in zip(start, onset_rhos)),
+               np.reshape(arrival.start_state.theta, (-1, 2)), None, False, None)
+    return raw, predicted, elsewhere
+
+
+def _on_its_own_thread(job):
+    """``job`` moved to its worker now: a path that takes longer than the rest of a call
+    would be tracked twice otherwise (a Job's first attempt on the caller's thread is
+    abandoned, not resumed, when it runs out of time)."""
+    job.run(-math.inf)
+    return job
+
+
+def _with_events(outcome, events, first=False):
+    """``outcome`` with ``events`` added (before its own: ``first``)."""
+    if not events:
+        return outcome
+    events = tuple(events)
+    both = events + outcome.events if first else outcome.events + events
+    return Outcome(status=outcome.status, events=both, reason=outcome.reason,
+                   message=outcome.message)
 
 
 def _figures(report, index, predicted, elsewhere):

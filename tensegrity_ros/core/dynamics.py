@@ -29,8 +29,9 @@ from . import module as _m
 from . import transient
 from .module import InvalidParameterError, ModuleParams
 from .tracking import ModulePath, ModuleTrack, settle, track_module
-from .transient import (MAX_HOLD, ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, RhoRamp,
-                        SnapHistory, SolverSettings, wrap as _wrap)
+from .transient import (MAX_HOLD, ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, Rest, RhoRamp,
+                        SnapHistory, SolverSettings, imperfection_torque, wrap as _wrap)
+
 
 @dataclass(frozen=True)
 class Snap:
@@ -40,8 +41,9 @@ class Snap:
     ``summary`` keys: ``onset_rho`` (rho when either |theta'| first exceeds
     ONSET_SPEED, or None), ``onset_time``, ``peak_speed`` (rad/s), ``peak_actuator_force``
     (N, signed, largest magnitude), ``overshoot`` (rad past the final angle after the
-    onset), ``settle_time`` (s from the onset, or from the ramp's end if nothing snapped,
-    until within SETTLE_TOLERANCE for good; None if not settled), ``settled``, ``final``
+    onset, on continuous angles), ``settle_time`` (s from the onset, or from the ramp's
+    end if nothing snapped, until the energy above the rest state stays below the settled
+    threshold: see :mod:`.transient`; None if not settled), ``settled``, ``final``
     ({theta1, theta2, speed} at the end), ``quasi_static`` (the tracker's jumps and final
     state) and ``lands_elsewhere`` (the rest state is not the tracker's).
     """
@@ -54,9 +56,12 @@ class Snap:
 
 
 class ModuleEquations:
-    """The equations of motion of one module along a rho ramp."""
+    """The equations of motion of one module along a rho ramp.  ``extend_ramp``: the
+    right-hand side continues the ramp at its rate past its end instead of holding (a live
+    segment ends there; its integrator may step past the end only to interpolate)."""
 
-    def __init__(self, params: ModuleParams, ramp: RhoRamp, damping: float):
+    def __init__(self, params: ModuleParams, ramp: RhoRamp, damping: float,
+                 extend_ramp=False):
         if params.m1 <= 0.0 or params.m2 <= 0.0:
             raise InvalidParameterError(
                 f'dynamics needs positive rod masses, got m1={params.m1!r}, m2={params.m2!r}')
@@ -66,12 +71,35 @@ class ModuleEquations:
         self.ramp = ramp
         self.damping = transient.checked_damping(damping)
         self.inertia = np.array([params.m1 * params.L1 ** 2, params.m2 * params.L2 ** 2]) / 3.0
+        self.extend_ramp = extend_ramp
+        # the built-in imperfection (transient.IMPERFECTION) on rod 1
+        self.imperfection = np.array([imperfection_torque(params), 0.0])
+        self._constants = self._for_rhs(params, ramp)
+
+    def _for_rhs(self, params, ramp):
+        """The right-hand side's constants as floats: it runs some 2000 times per simulated
+        second, so it is scalar arithmetic (a numpy call on two numbers costs more than
+        the arithmetic)."""
+        p = params
+        rho0, rho1 = float(ramp.rho0), float(ramp.rho1)
+        held_from = math.inf if self.extend_ramp else float(ramp.duration)
+        return (rho0, rho1 - rho0, float(ramp.duration), held_from, p.L1 * (p.ka + p.kc),
+                p.L2 * (p.kb + p.kc), p.kc * p.L1 * p.L2, p.L1 * p.f3x, p.L1 * p.f3y_total,
+                p.L2 * p.f4x, p.L2 * p.f4y_total, float(self.imperfection[0]),
+                self.damping, 1.0 / float(self.inertia[0]), 1.0 / float(self.inertia[1]))
 
     def rhs(self, t, y):
-        """(theta', theta'') at time t."""
-        grad = self.path.residual(y[:2], self.ramp.fraction(t))
-        acc = (-grad - self.damping * y[2:]) / self.inertia
-        return np.array([y[2], y[3], acc[0], acc[1]])
+        """(theta', theta'') at time t: I theta'' = -dU/dtheta - c theta' (+ the imperfection)."""
+        (rho0, drho, duration, held_from, a1, a2, kc12, f3x, f3y, f4x, f4y, tau, c, inv1,
+         inv2) = self._constants
+        rho = rho0 + drho if duration == 0.0 or t >= held_from else (
+            rho0 + drho * max(t, 0.0) / duration)
+        t1, t2, w1, w2 = y[0], y[1], y[2], y[3]
+        s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
+        s12 = s1 * c2 + c1 * s2
+        g1 = a1 * rho * s1 - kc12 * s12 + f3x * s1 - f3y * c1
+        g2 = a2 * rho * s2 - kc12 * s12 - f4x * s2 - f4y * c2
+        return np.array([w1, w2, (tau - g1 - c * w1) * inv1, (-g2 - c * w2) * inv2])
 
     def gradient(self, t, theta):
         """dU/dtheta at samples (t, theta): vectorised on the hold, per sample on the ramp."""
@@ -83,7 +111,8 @@ class ModuleEquations:
 
     def acceleration(self, t, y):
         """theta'' at samples; ``y`` has shape (n, 4)."""
-        return (-self.gradient(t, y[:, :2]) - self.damping * y[:, 2:]) / self.inertia
+        return (self.imperfection - self.gradient(t, y[:, :2])
+                - self.damping * y[:, 2:]) / self.inertia
 
     def actuator_force(self, t, y):
         """Force (N) the actuator exerts on A2 along +x, at samples ``y`` (shape (n, 4)).
@@ -109,12 +138,6 @@ class ModuleEquations:
         x_g_ddot = 0.5 * self.end.L2 * (np.sin(t2) * alpha2 + np.cos(t2) * omega[:, 1] ** 2)
         return static + self.end.m2 * x_g_ddot
 
-    def mechanical_energy_near(self, y, theta_eq):
-        """Kinetic energy plus the quadratic potential about ``theta_eq`` (at rho1)."""
-        delta = _wrap(y[:2] - theta_eq)
-        h = _m.hessian(self.end, theta_eq)
-        return 0.5 * float(self.inertia @ y[2:] ** 2) + 0.5 * float(delta @ h @ delta)
-
     @staticmethod
     def after_ramp(y):
         """The angle rates carry on when rho stops (its rho'' impulse is neglected)."""
@@ -131,25 +154,48 @@ class ModuleEquations:
 
         return [rod1, rod2]
 
+    def rest_candidate(self, y, known=None):
+        """The :class:`~.transient.Rest` of the equilibrium a slow state (|theta'| below
+        1e-3 rad/s) is settling to, or None (fast, undamped, or no equilibrium found).
+        ``known``: a verified equilibrium at rho1 taken if the state is within 1e-3 rad of
+        it (the quasi-static prediction: no second settle)."""
+        if self.damping == 0.0 or np.max(np.abs(y[2:])) > 1e-3:
+            return None
+        eq = known
+        if eq is None or np.max(np.abs(_wrap(y[:2] - np.ravel(eq.theta)))) > 1e-3:
+            try:
+                eq = settle(self.end, y[:2])
+            except (RuntimeError, ValueError):
+                return None
+        theta_eq = eq.theta + 2.0 * math.pi * np.round((y[:2] - eq.theta) / (2.0 * math.pi))
+        return Rest(theta=theta_eq, excess=self.excess_energy(theta_eq),
+                    threshold=0.5 * min(float(np.min(eq.eigenvalues)),
+                                        float(np.min(self.inertia))) * SETTLE_TOLERANCE ** 2,
+                    eq=eq)
+
     def settled(self, y):
-        """The rest angles if the state is trapped within SETTLE_TOLERANCE for good, else None.
+        """The :class:`~.transient.Rest` if the state is trapped within SETTLE_TOLERANCE for
+        good, else None.
 
         With damping the mechanical energy never grows while rho is held, so once it
         is below the least energy any state outside the tolerance box has (half the
         smallest of the Hessian's eigenvalues and the inertias, times tol^2), the
         motion stays in the box for good.
         """
-        if self.damping == 0.0 or np.max(np.abs(y[2:])) > 1e-3:
-            return None
-        try:
-            eq = settle(self.end, y[:2])
-        except (RuntimeError, ValueError):
-            return None
-        theta_eq = eq.theta + 2.0 * math.pi * np.round((y[:2] - eq.theta) / (2.0 * math.pi))
-        floor = 0.5 * min(float(np.min(eq.eigenvalues)), float(np.min(self.inertia)))
-        if self.mechanical_energy_near(y, theta_eq) < 0.5 * floor * SETTLE_TOLERANCE ** 2:
-            return theta_eq
-        return None
+        rest = self.rest_candidate(y)
+        return transient.trapped(rest, y)
+
+    def excess_energy(self, theta_eq):
+        """Energy (J) above the minimum ``theta_eq`` at rho1 of states (n, 4): kinetic plus
+        the quadratic potential about it (exact to third order in the distance, and free
+        of the cancellation of two large potentials)."""
+        h = _m.hessian(self.end, theta_eq)
+
+        def excess(t, ys):
+            delta = ys[:, :2] - theta_eq
+            potential = np.einsum('ni,ij,nj->n', delta, h, delta)
+            return 0.5 * (ys[:, 2:] ** 2 @ self.inertia + potential)
+        return excess
 
 
 def _beside_quasi_static(track, final_theta):
@@ -203,11 +249,11 @@ def _summary(system, solution, history, events, rest, track):
     summary.update(transient.figures(
         history.t, lambda t: solution(t).T[:, :2], lambda t: solution(t).T[:, 2:],
         lambda t: system.actuator_force(t, solution(t).T)[:, None], onset, rest,
-        ramp.duration))
+        ramp.duration, energy=None if rest is None else (lambda t: rest.excess(t, solution(t).T))))
     theta, speed = history.theta[-1], history.theta_dot[-1]
     summary['final'] = {'theta1': float(_wrap(theta[0])), 'theta2': float(_wrap(theta[1])),
                         'speed': float(np.max(np.abs(speed)))}
-    summary.update(_beside_quasi_static(track, rest if rest is not None else theta))
+    summary.update(_beside_quasi_static(track, rest.theta if rest is not None else theta))
     return summary
 
 

@@ -84,7 +84,8 @@ class MovingModule(LiveMotion):
 
     def _equations(self):
         return ModuleEquations(self.params.with_(rho=self.rho),
-                               RhoRamp(self.rho, self.target, self.max_rate), self.damping)
+                               RhoRamp(self.rho, self.target, self.max_rate), self.damping,
+                               extend_ramp=True)
 
     @staticmethod
     def _carried(old, t_local, y, new):
@@ -92,12 +93,16 @@ class MovingModule(LiveMotion):
         return y
 
     @staticmethod
-    def _readings(system, t_local, ys):
-        return ys[:, :2], ys[:, 2:]
+    def _all_readings(system, t_local, ys):
+        return ys[:, :2], ys[:, 2:], system.actuator_force(t_local, ys)[:, None]
 
     @staticmethod
-    def _forces(system, t_local, ys):
-        return system.actuator_force(t_local, ys)[:, None]
+    def _reading_splits():
+        return [2, 4]
+
+    @staticmethod
+    def _fastest(system, t_local, y):
+        return max(abs(float(y[2])), abs(float(y[3])))
 
     @staticmethod
     def _final(y):

@@ -18,6 +18,7 @@ from .live_motion import LiveMotion
 from .moving_module import checked_rate
 from .module import InvalidParameterError
 from .neck_dynamics import NeckEquations, damping_vector
+from .neck_kernel import warm_up
 from .stack import Stack, StackPath, settle_stack
 from .transient import RhoRamp, SolverSettings
 
@@ -31,30 +32,37 @@ class MovingNeck(LiveMotion):
     def __init__(self, stack: Stack, theta_guess, damping, max_rate, t: float = 0.0,
                  settings: SolverSettings = SolverSettings()):
         self.n = len(stack)
+        warm_up()                                   # the compiled equations, now
         start = settle_stack(stack, theta_guess)
         super().__init__(stack, tuple(float(m.rho) for m in stack.modules), start, damping,
                          max_rate, t, settings)
 
     # -- what it is now ----------------------------------------------------------------
-    def _angles_and_rates(self):
-        angles, rates = self._system.rates(self._local(), self.y)
-        return angles.reshape(self.n, 2), rates.reshape(self.n, 2)
+    def _now(self):
+        """(angles (N x 2), rates (N x 2), actuator forces (N)) of the state now, computed
+        once per state (a node reads every module's at every tick)."""
+        key = (self.t, id(self._system), id(self.y))
+        if getattr(self, '_kept', (None,))[0] != key:
+            angles, rates, forces = self._system.readings(self._local(), self.y[None, :])
+            self._kept = (key, angles[0].reshape(self.n, 2), rates[0].reshape(self.n, 2),
+                          forces[0])
+        return self._kept[1:]
 
     @property
     def theta(self):
         """Local angles (N x 2, rad, wrapped) now."""
-        return self._angles_and_rates()[0]
+        return self._now()[0].copy()
 
     @property
     def theta_dot(self):
         """Local angle rates (N x 2, rad/s) now."""
-        return self._angles_and_rates()[1]
+        return self._now()[1].copy()
 
     @property
     def actuator_forces(self):
         """Force (N) of every actuator now (module 0: on A2 along +x; above: along the
         chord, positive pushing apart), the rods' inertia included."""
-        return self._system.actuator_forces(self._local(), self.y)
+        return self._now()[2].copy()
 
     @property
     def rho_dot(self):
@@ -108,7 +116,7 @@ class MovingNeck(LiveMotion):
     def _equations(self):
         start = Stack(tuple(m.with_(rho=r) for m, r in zip(self.params.modules, self.rho)))
         return NeckEquations(start, RhoRamp(self.rho, self.target, self._ramp_rate()),
-                             self.damping)
+                             self.damping, extend_ramp=True)
 
     def _carried(self, old, t_local, y, new):
         """The nodes of the local angles now (rebuilt for the new design), with node
@@ -125,13 +133,17 @@ class MovingNeck(LiveMotion):
             y[:4 * self.n] = nodes[2:].ravel()
         return new.with_angle_rates(0.0, y, rates)
 
-    def _readings(self, system, t_local, ys):
-        both = np.array([np.stack(system.rates(tk, yk)) for tk, yk in zip(t_local, ys)])
-        return both[:, 0], both[:, 1]
+    @staticmethod
+    def _all_readings(system, t_local, ys):
+        return system.readings(t_local, ys)
 
-    def _forces(self, system, t_local, ys):
-        return np.array([system.actuator_forces(tk, yk) for tk, yk in zip(t_local, ys)])
+    def _reading_splits(self):
+        return [2 * self.n, 4 * self.n]
+
+    @staticmethod
+    def _fastest(system, t_local, y):
+        return float(np.max(np.abs(system.rates(t_local, y)[1])))
 
     def _final(self, y):
-        angles, rates = self._angles_and_rates()
+        angles, rates, _ = self._now()
         return {'theta': angles.tolist(), 'speed': float(np.max(np.abs(rates)))}

@@ -23,13 +23,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.integrate import OdeSolution
-from scipy.linalg import null_space
+from scipy.linalg import eigh, null_space
+from scipy.linalg.lapack import dgesv as _dgesv
 
+from . import neck_kernel as _kernel
 from . import transient
 from .module import InvalidParameterError
 from .stack import Stack, StackTrack, settle_stack, track_stack
-from .transient import (ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, RhoRamp, SnapHistory,
-                        SolverSettings, wrap)
+from .transient import (ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, Rest, RhoRamp,
+                        SnapHistory, SolverSettings, imperfection_torque, wrap)
 
 #: Baumgarte stabilisation rate (1/s) of the length constraints.
 BAUMGARTE = 20.0
@@ -50,15 +52,20 @@ class NeckSnap:
 class NeckEquations:
     """Equations of motion of an N-module neck in node coordinates along a rho ramp.
 
-    ``damping`` is one pivot damping (N m s/rad) for every pivot, or one per module."""
+    ``damping`` is one pivot damping (N m s/rad) for every pivot, or one per module.
+    ``extend_ramp``: the right-hand side continues the ramp at its rate past its end
+    instead of holding (a live segment ends there; its integrator may step past the end
+    only to interpolate the state at it)."""
 
-    def __init__(self, start: Stack, ramp: RhoRamp, damping: float):
+    def __init__(self, start: Stack, ramp: RhoRamp, damping: float, extend_ramp=False):
         self.n = n = len(start)
+        self.extend_ramp = extend_ramp      # the right-hand side goes on at the ramp's rate
         for i, m in enumerate(start.modules):
             if m.m1 <= 0.0 or m.m2 <= 0.0:
                 raise InvalidParameterError(f'dynamics needs positive rod masses, got module '
                                             f'{i}: m1={m.m1!r}, m2={m.m2!r}')
         self.ramp = ramp
+        self.imperfection = imperfection_torque(start.modules[0])    # on rod A1A3 of module 0
         self.damping = damping_vector(damping, n)
         self.pivot_damping = np.repeat(self.damping, 2)      # one per local angle
         self.modules = start.modules
@@ -97,13 +104,33 @@ class NeckEquations:
         self._rigid_ends = (np.array([a for a, _, _, _ in rigid]),
                             np.array([b for _, b, _, _ in rigid]))
         self._jacobian_layout()
+        self._kernel_args = self._for_the_kernel(loads)
+        self._base_mass_row = np.ascontiguousarray(self.mass_to_free[2, 4:])
+        self._compiled = _kernel.compiled()
+        self._for_numpy(loads)
+
+    def _for_the_kernel(self, loads):
+        """The arguments of :mod:`.neck_kernel`'s evaluations after (t, y), made once."""
+        contiguous = np.ascontiguousarray
+        return (self.n, contiguous(self.ramp.rho0, dtype=float),
+                contiguous(self.ramp.rho1, dtype=float),
+                -float(self.ramp.duration) if self.extend_ramp else float(self.ramp.duration),
+                contiguous(np.linalg.inv(self.mass)), contiguous(loads, dtype=float),
+                contiguous([[a, b] for a, b, _ in self.springs], dtype=np.int64),
+                contiguous(self._spring_k.ravel()),
+                contiguous(np.array(self._frame_nodes, dtype=np.int64)),
+                contiguous(self.damping, dtype=float), float(self.imperfection),
+                contiguous([[a, b] for a, b, _, _ in self.rigid], dtype=np.int64),
+                contiguous([0.0 if r[2] is None else r[2] for r in self.rigid], dtype=float),
+                contiguous([-1 if r[3] is None else r[3] for r in self.rigid], dtype=np.int64),
+                float(BAUMGARTE))
 
     # -- kinematics --------------------------------------------------------------------
     def full(self, t, y):
         """All node positions and velocities (nodes x 2 each) at time t."""
         x = np.empty((self.nodes, 2))
         v = np.zeros((self.nodes, 2))
-        rho, rho_dot = self.ramp.rho(t), self.ramp.rho_dot(t)
+        rho, rho_dot = self._ramp_now(t)
         x[0], x[1] = (0.0, 0.0), (rho[0], 0.0)
         v[1, 0] = rho_dot[0]
         k = 4 * self.n
@@ -172,40 +199,120 @@ class NeckEquations:
         return f.ravel() - jac.T @ (self.pivot_damping * (jac @ v.ravel()))
 
     # -- the ODE -------------------------------------------------------------------------
-    def _solve(self, t, y):
-        x, v, rho, rho_dot = self.full(t, y)
-        _, jac = self.angle_jacobian(x)
-        rows, d, dv = self.constraint_rows(x, v)
-        length, rate = self.lengths(rho, rho_dot)
-        phi = np.einsum('ij,ij->i', d, d) - length ** 2
-        phi_dot = 2.0 * np.einsum('ij,ij->i', d, dv) - 2.0 * length * rate
-        gamma = (-2.0 * np.einsum('ij,ij->i', dv, dv) + 2.0 * rate ** 2
-                 - 2.0 * BAUMGARTE * phi_dot - BAUMGARTE ** 2 * phi)
-        force = self.forces(x, v, jac)
-        k, m = 4 * self.n, len(self.rigid)
-        system = np.zeros((k + m, k + m))
-        system[:k, :k] = self.mass
-        system[:k, k:] = -rows[:, 4:].T
-        system[k:, :k] = rows[:, 4:]
-        sol = np.linalg.solve(system, np.concatenate([force[4:], gamma]))
-        return sol[:k], sol[k:], x, v, rows, force
+    # Two evaluations of the same equations: compiled (:mod:`.neck_kernel`, numba) where
+    # it is installed, else numpy (``_solve``): the same numbers to rounding, the numpy one
+    # ~10 times slower per evaluation (see neck_kernel's docstring).
 
     def rhs(self, t, y):
-        acc = self._solve(t, y)[0]
-        return np.concatenate([y[4 * self.n:], acc])
+        """dy/dt: (node velocities, node accelerations)."""
+        if self._compiled is not None:
+            return self._compiled.state_rate(t, y, *self._kernel_args)
+        return np.concatenate([y[4 * self.n:], self._solve(t, y)[0]])
 
     def rates(self, t, y):
+        """Local angles (wrapped) and their rates."""
+        if self._compiled is None:
+            return self.rates_from_nodes(t, y)
+        n, rho0, rho1, duration = self._kernel_args[:4]
+        return self._compiled.local_angles_and_rates(
+            t, np.ascontiguousarray(y, dtype=float), n, rho0, rho1, duration,
+            self._kernel_args[8])
+
+    def readings(self, t, ys):
+        """(local angles, rates, actuator forces) of states ``ys`` (k, 8N) at times ``t``
+        (k): every sample of a snap at once."""
+        t = np.full(len(ys), float(t)) if np.ndim(t) == 0 else np.array(t, dtype=float)
+        ys = np.ascontiguousarray(ys, dtype=float)
+        if self._compiled is not None:
+            return self._compiled.readings(t, ys, *self._kernel_args, self._base_mass_row)
+        rows = [(*self.rates_from_nodes(tk, yk), self.actuator_forces(tk, yk))
+                for tk, yk in zip(t, ys)]
+        return tuple(np.array([row[j] for row in rows]) for j in range(3))
+
+    def rates_from_nodes(self, t, y):
+        """:meth:`rates` by the angle Jacobian (numpy)."""
         x, v, _, _ = self.full(t, y)
         angles, jac = self.angle_jacobian(x)
         return angles, jac @ v.ravel()
 
     def actuator_forces(self, t, y):
-        """Module 0: the x reaction the actuator supplies at A2(0); above: 2 lambda l."""
-        acc, lam, x, v, rows, force = self._solve(t, y)
-        q_ddot = np.concatenate([np.zeros(4), acc])
-        reaction = self.mass_to_free[2] @ q_ddot - force[2] - rows[:, 2] @ lam
-        length, _ = self.lengths(self.ramp.rho(t), self.ramp.rho_dot(t))
-        return np.concatenate([[reaction], 2.0 * lam[self.chord_rows] * length[self.chord_rows]])
+        """Module 0: the x force the actuator exerts on A2(0); above: 2 lambda l along the
+        chord that is its telescopic rod (positive pushes apart), the rods' inertia in."""
+        if self._compiled is not None:
+            return self._compiled.actuator_forces(t, np.ascontiguousarray(y, dtype=float),
+                                                  *self._kernel_args, self._base_mass_row)
+        acc, lam, x, force, rho = self._solve(t, y)
+        a, b = self._rigid_ends
+        d_x = x[a, 0] - x[b, 0]
+        reaction = (self._base_mass_row @ acc - force[1, 0] - 2.0 * (d_x * (a == 1)) @ lam
+                    + 2.0 * (d_x * (b == 1)) @ lam)
+        chords = self.chord_rows
+        return np.concatenate([[reaction], 2.0 * lam[chords] * rho[self._rigid_chord[chords]]])
+
+    def _ramp_now(self, t):
+        """(rho, rho') of every actuator at t, as the right-hand side takes them (the ramp
+        extended past its end if ``extend_ramp``)."""
+        rho0, rho1, duration = self._kernel_args[1:4]
+        if duration == 0.0 or t >= duration > 0.0:
+            return rho1, np.zeros_like(rho1)
+        duration = abs(duration)
+        return rho0 + (max(t, 0.0) / duration) * (rho1 - rho0), (rho1 - rho0) / duration
+
+    def _solve(self, t, y):
+        """The equations in numpy: (free accelerations, multipliers, nodes, node forces,
+        rho) at (t, y); arrays made once, the KKT system solved by LAPACK's dgesv."""
+        rho, rate = self._ramp_now(t)
+        k = 4 * self.n
+        x, v = self._x, self._v
+        x[1, 0], v[1, 0] = rho[0], rate[0]
+        x[2:] = y[:k].reshape(-1, 2)
+        v[2:] = y[k:].reshape(-1, 2)
+        _, jac = self.angle_jacobian(x)
+        force = self._loads2 - self._laplacian @ x
+        force -= (jac.T @ (self.pivot_damping * (jac @ v.ravel()))).reshape(-1, 2)
+        rod = x[2] - x[0]
+        force[2] += self.imperfection / (rod @ rod) * np.array([-rod[1], rod[0]])
+        a, b = self._rigid_ends
+        d, dv = x[a] - x[b], v[a] - v[b]
+        chord = self._rigid_chord >= 0
+        length = np.where(chord, rho[self._rigid_chord], self._rigid_length)
+        length_rate = np.where(chord, rate[self._rigid_chord], 0.0)
+        phi = np.einsum('ij,ij->i', d, d) - length * length
+        phi_dot = 2.0 * np.einsum('ij,ij->i', d, dv) - 2.0 * length * length_rate
+        system = self._system
+        for (rows, cols, ends), sign in zip(self._kkt_blocks, (2.0, -2.0)):
+            values = sign * d[ends].ravel()
+            system[rows, cols] = values
+            system[cols, rows] = -values
+        rhs = np.concatenate([force.ravel()[4:],
+                              -2.0 * np.einsum('ij,ij->i', dv, dv) + 2.0 * length_rate ** 2
+                              - 2.0 * BAUMGARTE * phi_dot - BAUMGARTE ** 2 * phi])
+        _, _, solution, info = _dgesv(system, rhs)
+        if info != 0:
+            raise np.linalg.LinAlgError('singular KKT system of the neck')
+        return solution[:k], solution[k:], x.copy(), force, rho
+
+    def _for_numpy(self, loads):
+        """The numpy evaluation's constant arrays: node buffers, the spring Laplacian, the
+        KKT matrix with its mass block, where the constraint rows go in it."""
+        self._x, self._v = np.zeros((self.nodes, 2)), np.zeros((self.nodes, 2))
+        self._loads2 = np.asarray(loads, dtype=float).reshape(-1, 2)
+        laplacian = np.zeros((self.nodes, self.nodes))
+        for a, b, k in self.springs:
+            laplacian[np.ix_([a, b], [a, b])] += k * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        self._laplacian = laplacian
+        self._rigid_chord = np.array([-1 if r[3] is None else r[3] for r in self.rigid])
+        self._rigid_length = np.array([0.0 if r[2] is None else r[2] for r in self.rigid])
+        k, m = 4 * self.n, len(self.rigid)
+        self._system = np.zeros((k + m, k + m), order='F')
+        self._system[:k, :k] = self.mass
+        blocks = []
+        for ends in self._rigid_ends:
+            which = np.flatnonzero(ends >= 2)
+            rows = np.repeat(k + which, 2)
+            cols = (2 * (ends[which] - 2)[:, None] + np.arange(2)).ravel()
+            blocks.append((rows, cols, which))
+        self._kkt_blocks = blocks
 
     def onset_events(self):
         """One event: the fastest local angle rate crosses ONSET_SPEED (one evaluation of
@@ -244,54 +351,80 @@ class NeckEquations:
         y[4 * self.n:] = particular + basis @ z
         return y
 
-    def potential(self, x):
-        """U (J) in extended precision (rest is decided on differences of 1e-12 J)."""
-        x = np.asarray(x, dtype=np.longdouble)
-        u = -np.sum(self.loads.astype(np.longdouble) * x.ravel())
+    def _multipliers(self, nodes):
+        """The length constraints' multipliers lambda at an equilibrium ``nodes``:
+        grad U = lambda . grad(|d|^2 - l^2) on the free coordinates."""
+        zero = np.zeros_like(nodes)
+        rows, _, _ = self.constraint_rows(nodes, zero)
+        gradient = -self.forces(nodes, zero, np.zeros((2 * self.n, 2 * self.nodes)))
+        return np.linalg.lstsq(rows[:, 4:].T, gradient[4:], rcond=None)[0]
+
+    def rest_stiffness(self, nodes):
+        """The Hessian of L = U - lambda . (|d|^2 - l^2) (the equilibrium ``nodes``'
+        multipliers) on the free node coordinates: constant, L being quadratic in them."""
+        laplacian = np.zeros((self.nodes, self.nodes))
+        pair = np.array([[1.0, -1.0], [-1.0, 1.0]])
         for a, b, k in self.springs:
-            d = x[a] - x[b]
-            u += 0.5 * k * (d @ d)
-        return u
+            laplacian[np.ix_([a, b], [a, b])] += k * pair
+        for (a, b, _, _), value in zip(self.rigid, self._multipliers(nodes)):
+            laplacian[np.ix_([a, b], [a, b])] -= 2.0 * value * pair
+        return np.kron(laplacian, np.eye(2))[4:, 4:]
 
-    def _lagrangian_at(self, nodes, rho):
-        """U - lambda . (|d|^2 - l^2) with the multipliers of the equilibrium ``nodes``:
-        stationary there in every direction, so that a drift of the rigid lengths (the
-        Baumgarte-stabilised constraints hold to ~1e-10 m only) changes it to second
-        order, not by the chord forces times the drift."""
-        rows, _, _ = self.constraint_rows(nodes, np.zeros_like(nodes))
-        gradient = -self.forces(nodes, np.zeros_like(nodes), np.zeros((2 * self.n, 2 * self.nodes)))
-        lam = np.linalg.lstsq(rows[:, 4:].T, gradient[4:], rcond=None)[0]
-        length = np.asarray(self.lengths(rho, np.zeros_like(rho))[0], dtype=np.longdouble)
+    def excess_energy(self, nodes, stiffness):
+        """Energy (J) above the equilibrium ``nodes`` of states (n, 8N) while rho is held:
+        kinetic energy plus L(x) - L(x*) (``stiffness``: :meth:`rest_stiffness`).  L is
+        quadratic in the node coordinates and stationary at x*, so that is exactly
+        1/2 dx' H_L dx: no cancellation of large energies, and a drift of the rigid
+        lengths (the Baumgarte-stabilised constraints hold to ~1e-10 m only) enters to
+        second order, not times the chord forces."""
+        rest, k = nodes[2:].ravel(), 4 * self.n
 
-        def lagrangian(x):
-            x = np.asarray(x, dtype=np.longdouble)
-            d = np.array([x[a] - x[b] for a, b, _, _ in self.rigid])
-            return self.potential(x) - np.sum(lam.astype(np.longdouble) * (
-                np.sum(d * d, axis=1) - length ** 2))
-        return lagrangian
+        def excess(t, ys):
+            delta, v = ys[:, :k] - rest, ys[:, k:]
+            return 0.5 * (np.einsum('ni,ij,nj->n', v, self.mass, v)
+                          + np.einsum('ni,ij,nj->n', delta, stiffness, delta))
+        return excess
 
-    def settled(self, y):
-        """Rest angles if the damped energy above the nearby minimum is below the least
-        energy of any state outside the tolerance box (linearised), else None."""
+    def rest_threshold(self, nodes, stiffness):
+        """1/2 SETTLE_TOLERANCE^2 min(h, mu): h and mu the smallest stiffness and inertia
+        per unit local angle on the constraints' tangent space at ``nodes``, so that an
+        energy below it keeps every angle within the tolerance and every rate below it
+        (the module's rule, :meth:`.dynamics.ModuleEquations.settled`, in the same units)."""
+        zero = np.zeros_like(nodes)
+        basis = null_space(self.constraint_rows(nodes, zero)[0][:, 4:])
+        along = self.angle_jacobian(nodes)[1][:, 4:] @ basis       # node motion -> angles
+        metric = along.T @ along
+        h = eigh(basis.T @ stiffness @ basis, metric, eigvals_only=True)[0]
+        mu = eigh(basis.T @ self.mass @ basis, metric, eigvals_only=True)[0]
+        return 0.5 * SETTLE_TOLERANCE ** 2 * min(h, mu)
+
+    def rest_candidate(self, y, known=None):
+        """The :class:`~.transient.Rest` of the equilibrium a slow state (local rates below
+        1e-3 rad/s, rho held) is settling to, or None (fast, undamped, none found).
+        ``known``: a verified equilibrium at rho1 taken if the state is within 1e-3 rad of
+        it (the quasi-static prediction: no second settle)."""
         if not np.any(self.damping > 0.0):
             return None
         t_end = self.ramp.duration
         angles, rates = self.rates(t_end, y)
         if np.max(np.abs(rates)) > 1e-3:
             return None
-        end = Stack(tuple(m.with_(rho=r) for m, r in zip(self.modules, self.ramp.rho1)))
-        try:
-            eq = settle_stack(end, angles.reshape(self.n, 2))
-        except (RuntimeError, ValueError):
-            return None
-        x, v, rho, _ = self.full(t_end, y)
-        kinetic = 0.5 * v.ravel()[4:] @ self.mass @ v.ravel()[4:]
-        lagrangian = self._lagrangian_at(eq.nodes, rho)
-        excess = float(lagrangian(x) - lagrangian(eq.nodes)) + kinetic
-        stiffness = min(float(eq.eigenvalues[0]), float(np.linalg.eigvalsh(self.mass)[0]))
-        shortest = min(min(m.L1, m.L2) for m in self.modules)
-        floor = 0.5 * stiffness * (0.5 * SETTLE_TOLERANCE * shortest) ** 2
-        return eq.theta.ravel() if excess < 0.5 * floor else None
+        eq = known
+        if eq is None or np.max(np.abs(wrap(angles - np.ravel(eq.theta)))) > 1e-3:
+            end = Stack(tuple(m.with_(rho=r) for m, r in zip(self.modules, self.ramp.rho1)))
+            try:
+                eq = settle_stack(end, angles.reshape(self.n, 2))
+            except (RuntimeError, ValueError):
+                return None
+        stiffness = self.rest_stiffness(eq.nodes)
+        return Rest(theta=eq.theta.ravel(), excess=self.excess_energy(eq.nodes, stiffness),
+                    threshold=self.rest_threshold(eq.nodes, stiffness), eq=eq)
+
+    def settled(self, y):
+        """The :class:`~.transient.Rest` if the damped energy above the nearby minimum is
+        below the least energy of any state outside the tolerance box (linearised), else
+        None."""
+        return transient.trapped(self.rest_candidate(y), y)
 
 
 def damping_vector(damping, n):
@@ -335,12 +468,13 @@ def simulate_neck_snap(stack: Stack, rho_end, rate: float, damping: float, theta
     onset = min(events) if events else None
     summary = {'onset_rho': None if onset is None else ramp.rho(onset).tolist(),
                'onset_time': onset}
-    summary.update(transient.figures(ts, reader.angles, reader.rates, reader.forces, onset,
-                                     rest, ramp.duration))
+    summary.update(transient.figures(
+        ts, reader.angles, reader.rates, reader.forces, onset, rest, ramp.duration,
+        energy=None if rest is None else (lambda t: rest.excess(t, solution(t).T))))
     summary['final'] = {'theta': theta[-1].reshape(shape[1:]).tolist(),
                         'speed': float(np.max(np.abs(omega[-1])))}
     track = track_stack(stack, end, start)
-    summary.update(_beside_quasi_static(track, rest if rest is not None else theta[-1]))
+    summary.update(_beside_quasi_static(track, rest.theta if rest is not None else theta[-1]))
     return NeckSnap(history=history, summary=summary, quasi_static=track, solution=solution)
 
 

@@ -5,7 +5,29 @@ Shared by the dynamics of one module (:mod:`.dynamics`) and of the neck
 ``solve_ivp`` integrates the ramp and then the hold in chunks until the motion
 has settled for good; the figures (onset, peak speed and force, overshoot,
 settling time) are read from the dense output, peaks refined by a bounded scalar
-search and the last exit from the rest tolerance by a root bracket.
+search and the settling time by a root bracket on the energy above the rest state.
+
+Angles are read continuously (unwrapped): a rod that swings through pi is not a jump of
+2 pi in any figure.  The settling time is the time after which the mechanical energy
+above the final minimum stays below the "settled" threshold: while rho is held and the
+pivots are damped that energy only falls, so the time is one crossing of a falling curve
+and moves with the integration error by about that error (the last exit from a box of
+1e-6 rad around the rest angles, used before, is decided by whether one swing of the
+slowest mode peaks just inside or just outside: half a period for 2e-9 rad).
+
+A perfectly symmetric mechanism on its symmetric branch past a branch point is an
+unstable equilibrium that exact arithmetic never leaves (the equations keep
+theta1 = theta2 bit for bit); no real module is that perfect.  Every transient therefore
+carries :data:`IMPERFECTION`: a constant torque of IMPERFECTION (ka + kc) L1^2 on rod 1
+of the bottom module, in the +theta1 direction -- 1e-13 of the torques its springs
+exert (a thousand times the rounding of a sum of them), far below the precision of any
+figure (it moves a stable state by ~1e-13 rad), yet enough to leave an unstable one, as
+the quasi-static tracker leaves a branch point along its critical mode (whose first
+non-zero component it takes positive, as here).  How long the motion lingers on the
+unstable branch grows with the logarithm of 1 / IMPERFECTION (as it does with a real
+module's imperfections): the onset of such a snap is a model figure, its peak speed and
+landing are not (fig. 8a past C1: onset 5.45 s; 5.32 s with 1e-12, 5.69 s with 1e-14;
+peak 33.5 rad/s).
 """
 from __future__ import annotations
 
@@ -26,6 +48,27 @@ SETTLE_TOLERANCE = 1e-6
 MAX_HOLD = 60.0
 #: Rest states closer than this (rad, per angle) are the same equilibrium.
 SAME_LANDING = 1e-4
+#: Relative size of the built-in imperfection (see the module docstring).
+IMPERFECTION = 1e-13
+
+
+def imperfection_torque(params):
+    """The built-in imperfection (N m) on rod 1 of the module ``params`` (the bottom one)."""
+    return IMPERFECTION * (params.ka + params.kc) * params.L1 ** 2
+
+
+@dataclass(frozen=True)
+class Rest:
+    """Where a damped transient rests: the rest ``theta`` (rad, continuous with the
+    state it was found from), ``excess(t, ys)`` the mechanical energy (J) above that
+    minimum of states ``ys`` (shape (n, state size)) at segment times ``t`` while rho is
+    held, and ``threshold`` (J): below it the state is trapped within SETTLE_TOLERANCE
+    of ``theta`` for good; ``eq`` the verified equilibrium it was found as."""
+
+    theta: np.ndarray
+    excess: object = field(repr=False)
+    threshold: float
+    eq: object = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)
@@ -96,12 +139,22 @@ class SnapHistory:
 
 @dataclass(frozen=True)
 class SolverSettings:
-    """solve_ivp settings: tolerances that keep the reported figures to 0.1 %."""
+    """Integration settings: tolerances that keep the reported figures to 0.1 %.  Offline
+    transients use solve_ivp's ``method``; the live loop (:mod:`.live_motion`) VODE's
+    Adams method with the same tolerances, sampled every ``sample`` s."""
 
     method: str = 'DOP853'
     rtol: float = 1e-10
     atol: float = 1e-12
     chunk: float = 1.0          # s of hold between checks for "settled for good"
+    sample: float = 0.002       # s between the live loop's samples
+
+
+def trapped(rest, y):
+    """``rest`` if state ``y`` is below its threshold (trapped for good), else None."""
+    if rest is not None and rest.excess(None, np.asarray(y)[None, :])[0] < rest.threshold:
+        return rest
+    return None
 
 
 def checked_hold(hold):
@@ -128,8 +181,8 @@ def _integrate(system, y0, t0, t1, settings):
 
 def run(system, y0, hold, settings):
     """Integrate the ramp, then the hold (``hold`` s, or until ``system.settled(y)``
-    returns the rest angles, at most MAX_HOLD); returns (OdeSolution, onset events,
-    rest angles or None).  ``system.after_ramp(y)`` maps the state across the ramp's
+    returns a :class:`Rest`, at most MAX_HOLD); returns (OdeSolution, onset events,
+    Rest or None).  ``system.after_ramp(y)`` maps the state across the ramp's
     end, where the actuator velocities step to zero."""
     ramp_end = system.ramp.duration
     pieces = []
@@ -171,26 +224,48 @@ def _refined_peak(f, ts, values):
     return best
 
 
-def _last_exit(box, ts, values):
-    """Time after which ``box`` (<= 0 inside) stays <= 0: the last crossing, refined."""
+def _last_exit(f, ts, values):
+    """Time after which ``f`` (<= 0 inside) stays <= 0, from its ``values`` at ``ts``: the
+    last crossing, refined (None if still outside at the last sample)."""
     outside = np.flatnonzero(values > 0.0)
     if outside.size == 0:
         return float(ts[0])
     i = int(outside[-1])
     if i == len(ts) - 1:
         return None
-    return float(brentq(box, ts[i], ts[i + 1], xtol=1e-12))
+    return float(brentq(f, ts[i], ts[i + 1], xtol=1e-12))
 
 
-def figures(ts, angles, rates, forces, onset, rest, ramp_end):
+class _Continuous:
+    """Angles read without the 2 pi jumps of wrapping: samples unwrapped along the time
+    axis, and any time in between taken onto the branch of its nearest sample."""
+
+    def __init__(self, angles, ts):
+        self._angles, self.ts = angles, ts
+        self.samples = np.unwrap(angles(ts), axis=0)
+
+    def __call__(self, t):
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        near = self.samples[np.clip(np.searchsorted(self.ts, t), 0, len(self.ts) - 1)]
+        return near + wrap(self._angles(t) - near)
+
+    def onto_branch(self, theta):
+        """``theta`` shifted by whole turns onto the branch of the last sample."""
+        last = self.samples[-1]
+        return theta + 2.0 * math.pi * np.round((last - theta) / (2.0 * math.pi))
+
+
+def figures(ts, angles, rates, forces, onset, rest, ramp_end, energy=None):
     """Peak speed, peak actuator force, overshoot and settling time of a transient.
 
     ``angles(t)``, ``rates(t)``, ``forces(t)`` evaluate the dense solution at an
-    array of times (shape (n, k) for angles and rates, (n, m) for forces);
-    ``onset`` is the onset time (or None), ``rest`` the rest angles (or None if
-    not settled).  Angles here are continuous (not wrapped).
+    array of times (shape (n, k) for angles and rates, (n, m) for forces; angles may be
+    wrapped: they are read continuously); ``onset`` is the onset time (or None),
+    ``rest`` the :class:`Rest` (or None if not settled) and ``energy(t)`` its excess
+    energy at times t >= ``ramp_end`` (rho held from there on).
     """
-    theta, omega, force = angles(ts), rates(ts), forces(ts)
+    angles = _Continuous(angles, ts)
+    theta, omega, force = angles.samples, rates(ts), forces(ts)
 
     def at(f, t):
         return f(np.array([t]))[0]
@@ -200,17 +275,15 @@ def figures(ts, angles, rates, forces, onset, rest, ramp_end):
     sign = 1.0 if np.max(force) >= -np.min(force) else -1.0
     peak_force = sign * _refined_peak(lambda t: float(np.max(sign * at(forces, t))), ts,
                                       np.max(sign * force, axis=1))
-    final = rest if rest is not None else theta[-1]
+    final = angles.onto_branch(rest.theta) if rest is not None else theta[-1]
     from_t = onset if onset is not None else 0.0
     overshoot = _overshoot(ts, theta, final, from_t, lambda t: at(angles, t))
     settle_time = None
     if rest is not None:
-        def box(t):
-            return max(float(np.max(np.abs(at(angles, t) - rest))),
-                       float(np.max(np.abs(at(rates, t))))) / SETTLE_TOLERANCE - 1.0
-        outside = np.maximum(np.max(np.abs(theta - rest), axis=1),
-                             np.max(np.abs(omega), axis=1)) / SETTLE_TOLERANCE - 1.0
-        exit_time = _last_exit(box, ts, outside)
+        held = ts >= ramp_end
+        hold_ts = np.concatenate([[ramp_end], ts[held]])
+        exit_time = _last_exit(lambda t: float(energy(np.array([t]))[0]) / rest.threshold - 1.0,
+                               hold_ts, energy(hold_ts) / rest.threshold - 1.0)
         start = onset if onset is not None else ramp_end
         settle_time = None if exit_time is None else max(exit_time - start, 0.0)
     return {'peak_speed': peak_speed, 'peak_actuator_force': peak_force,
@@ -221,7 +294,8 @@ def _overshoot(ts, theta, final, from_t, angles_at):
     """Largest excursion (rad) of any rod past its final angle, away from where it came.
 
     Each rod approaches its final angle from the side it was on at ``from_t``
-    (the onset, or the start); the overshoot is how far it swings beyond.
+    (the onset, or the start); the overshoot is how far it swings beyond.  ``theta``
+    and ``angles_at`` are continuous (unwrapped), ``final`` on the same branch.
     """
     keep = ts >= from_t
     if not np.any(keep):

@@ -1,0 +1,68 @@
+"""What the node says of work that goes on over time (mixed into ``TensegrityNode``).
+
+* ``joint_states``: the live state, stamped with the time it holds for -- in the dynamics
+  mode the time the integrated state has reached, earlier than the tick while the
+  simulation is behind the clock;
+* a tick that ended behind the clock (dynamics mode): counted in
+  ``dynamics_behind_ticks``, the node status WARN, a throttled WARN line, the lag in
+  ``/diagnostics``;
+* a reset answered "under way": a ``reset done`` line and the new state published when
+  it has settled.
+
+The node supplies ``_sim``, ``_dynamics``, ``_js``, ``_js_pub``, ``_names``,
+``_counters``, ``_now_ns``, ``_count_and_warn``, ``_publish_everything`` and
+``_describe_module``.  No ROS import here: the node turns the values into messages.
+"""
+
+
+class LiveStateReports:
+    """Mixin: the live joint states and the reports of lag and of deferred resets."""
+
+    def _init_live_state_reports(self):
+        self._lag_max = 0.0                 # dynamics: largest lag (s) since the last report
+        self._reset_under_way = False       # a reset answered "under way", not yet done
+        if self._dynamics:
+            self._counters['dynamics_behind_ticks'] = 0
+
+    def _publish_joint_states(self, now_ns=None):
+        """Publish the live state, stamped with the time it holds for: ``now_ns`` (or now);
+        in the dynamics mode the time the integration reached (earlier while it lags)."""
+        js = self._js
+        for i in range(len(self._names)):
+            if self._dynamics:
+                live = self._sim.live(i)
+                js.set_module(i, live.rho, live.theta1, live.theta2, live.actuator_force)
+                js.set_velocity(i, live.rho_dot, live.theta1_dot, live.theta2_dot)
+            else:
+                p, eq = self._sim.module(i)
+                js.set_module(i, p.rho, eq.theta1, eq.theta2, eq.actuator_force)
+        stamp = self._now_ns() if now_ns is None else now_ns
+        if self._dynamics and self._sim.state_time_ns is not None:
+            stamp = min(stamp, self._sim.state_time_ns)
+        self._js_pub.publish(js.stamped(stamp))
+
+    def _report_progress(self):
+        """After a tick's simulator call: the lag (dynamics mode), a deferred reset done."""
+        lag = self._sim.lag if self._dynamics else 0.0
+        if lag > 0.0:
+            self._lag_max = max(self._lag_max, lag)
+            self._count_and_warn('dynamics_behind_ticks', 'behind', (
+                f'dynamics: the simulation is {lag:.3f} s behind the clock (it integrates at '
+                f'most {self._sim.time_budget * 1e3:g} ms per call); joint_states carry the '
+                f'time their state holds for; catching up'))
+        if self._reset_under_way and not self._sim.pending:
+            self._reset_under_way = False
+            self._last_stable = None
+            self._publish_everything()
+            self.get_logger().info('reset done: ' + '; '.join(
+                self._describe_module(i) for i in range(len(self._names))))
+
+    def _progress_summary(self, events):
+        """(message part or None, extra /diagnostics values) since the last report."""
+        if not self._dynamics:
+            return None, []
+        part = (f'the simulation fell behind the clock (up to {self._lag_max:.3g} s)'
+                if 'behind' in events else None)
+        values = [('dynamics_lag', self._sim.lag), ('dynamics_lag_max', self._lag_max)]
+        self._lag_max = self._sim.lag
+        return part, values

@@ -191,8 +191,9 @@ class DynamicSimulator(Simulator):
                          float(m.actuator_forces[index]))
 
     def design(self, index):
-        """The design and loads of the moving rods now (a change acts on them at once)."""
-        return self._moving_modules()[index]
+        """The design and loads of the moving rods now (the latest change, deferred ones
+        included: they act on the rods at once)."""
+        return self._latest_modules()[index]
 
     def module_nodes(self, index):
         """A1..A4 (4, 2) now: of the moving rods, or of the verified rest state."""

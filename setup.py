@@ -6,7 +6,7 @@ package_name = 'tensegrity_ros'
 
 setup(
     name=package_name,
-    version='0.1.0',
+    version='0.2.0',
     packages=find_packages(exclude=['test', 'benchmarks']),
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
@@ -15,11 +15,23 @@ setup(
         ('share/' + package_name + '/msg_docs', glob('msg_docs/*.md')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
-    install_requires=['setuptools'],
+    # What the node and the offline tool import (ROS itself: rclpy and the message packages,
+    # from a ROS install or the ros-jazzy-* wheels of requirements.txt).
+    # (numba compiles a live neck's equations of motion; without it they run in numpy).
+    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'PyYAML'],
+    extras_require={
+        # the offline tool's PNG figures, progress bar and tolerance studies
+        # (`pip install .[tools]`)
+        'tools': ['matplotlib', 'tqdm', 'dask', 'distributed'],
+        'test': ['pytest', 'hypothesis', 'matplotlib', 'tqdm', 'dask', 'distributed'],
+    },
     zip_safe=True,
-    maintainer='tensegrity_ros developers',
-    maintainer_email='dev@tensegrity-ros.invalid',
-    description='Planar tensegrity mechanism (bird neck): exact equilibria, jump-aware tracking, ROS 2 node.',
+    # placeholders on RFC 2606's documentation domain, as in package.xml
+    maintainer='tensegrity_ros maintainers',
+    maintainer_email='maintainers@example.com',
+    url='https://example.com/tensegrity_ros',
+    description='Planar tensegrity mechanism (bird neck): exact equilibria, jump-aware '
+                'tracking, trajectories and TF, ROS 2 node.',
     license='Apache-2.0',
     tests_require=['pytest'],
     entry_points={

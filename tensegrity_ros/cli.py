@@ -1,4 +1,4 @@
-"""``tensegrity``: the offline command line of tensegrity_ros (DESIGN.md section 6).
+"""``tensegrity``: the offline command line of tensegrity_ros (docs/cli.md).
 
 Subcommands::
 
@@ -20,7 +20,7 @@ human-readable tables show degrees.  The paper's F3, F4 are the vertical force
 components (positive pulls up).  ``--k`` sets all three springs, ``--ka/--kb/--kc``
 override it; ``--F`` sets F3 = F4, ``--F3/--F4`` override it.
 
-Stack (several modules, DESIGN.md section 4): geometry, stiffness and mass options
+Stack (several modules, docs/model.md section 4): geometry, stiffness and mass options
 apply to every module, ``--rho`` to every module (``--rhos`` one per module), the
 force options to the top module (the head).  ``--config`` reads a node parameter
 file; options given with it override the file in the same way.
@@ -154,7 +154,7 @@ def build_parser():
     p = sub.add_parser(
         'solve', help='every equilibrium at one parameter point (one module or a stack)',
         description='Print every equilibrium (at most 6) with its stability. With --modules, '
-                    '--rhos or --config: the equilibria of a neck stack (DESIGN.md section 4) '
+                    '--rhos or --config: the equilibria of a neck stack (docs/model.md section 4) '
                     'by a multi-start search (exact for one module).')
     _add_parameter_options(p)
     group = _add_stack_options(p)
@@ -278,7 +278,7 @@ def build_parser():
 
 def _add_stack_options(parser, track=False):
     group = parser.add_argument_group(
-        'neck stack (DESIGN.md section 4)',
+        'neck stack (docs/model.md section 4)',
         '--modules, --rhos, --config' + (', --to-rhos, --theta' if track else '')
         + ' select the stack form. Module 0 is at the bottom. Geometry, stiffness and mass '
         'options and --rho apply to every module; the force options load the top module '
@@ -940,7 +940,7 @@ def cmd_diagram(args, out):
 
 
 # ---------------------------------------------------------------------------
-# range and limit (exact analysis, DESIGN.md section 3 / the paper's sections 4-5)
+# range and limit (exact analysis, docs/model.md section 3 / the paper's sections 4-5)
 
 def _end_record(end):
     return {'rho': float(end.rho), 'kind': end.kind,
@@ -1052,7 +1052,7 @@ def main(argv=None):
     except KeyboardInterrupt:
         sys.stderr.write(f'{prog}: interrupted\n')
         return 130
-    except (OSError, RuntimeError) as exc:
+    except (OSError, RuntimeError, ImportError) as exc:     # ImportError: no tools extra
         sys.stderr.write(f'{prog}: error: {exc}\n')
         return EXIT_FAILURE
     except Exception as exc:             # a bug of ours: still one line, never a traceback

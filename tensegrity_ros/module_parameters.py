@@ -177,3 +177,27 @@ def check_dynamics_values(m, get):
         if not (math.isfinite(v) and v > 0.0):
             return f'{m}.{key} must be > 0 ({unit}) when dynamics is true, got {v!r}'
     return ''
+
+
+def live_values(get, live):
+    """{key: value} of the module parameters (read by ``get``) that do not say what the live
+    :class:`ModuleParams` ``live`` is: after a force message, or a path stopped early.
+    Springs that follow ``k`` (override 0.0) are read back through ``k`` while they agree."""
+    out = {key: float(getattr(live, key)) for key in ('L1', 'L2', 'm1', 'm2')
+           if get(key) != getattr(live, key)}
+    for key, fields in (('force_a3', ('f3x', 'f3y')), ('force_a4', ('f4x', 'f4y'))):
+        value = [float(getattr(live, f)) for f in fields]
+        if get(key) != value:
+            out[key] = value
+    following = [key for key in ('ka', 'kb', 'kc') if not get(key) > 0.0]
+    for key in ('ka', 'kb', 'kc'):
+        if key not in following and get(key) != getattr(live, key):
+            out[key] = float(getattr(live, key))
+    stiffnesses = {float(getattr(live, key)) for key in following}
+    if len(stiffnesses) == 1:
+        (k,) = stiffnesses
+        if get('k') != k:
+            out['k'] = k
+    elif stiffnesses:
+        out.update({key: float(getattr(live, key)) for key in following})
+    return out

@@ -1,22 +1,28 @@
-"""The ``tensegrity_node``: the ROS layer around the core simulator (DESIGN.md sections 5, 8).
+"""The ``tensegrity_node``: the ROS layer around the core simulator (interface: msg_docs/).
 
 What the mechanism does -- targets, speed limits, loads, parameter changes, reset,
 tracking, jumps, verification -- is decided by :class:`tensegrity_ros.core.simulator.
 Simulator` (one module or a neck, one code path, tested without ROS).  This node only maps:
 
-* parameters -> the simulator's configuration (:mod:`tensegrity_ros.node_parameters`);
+* parameters -> the simulator's configuration (:mod:`tensegrity_ros.node_parameters`; the
+  callbacks that check, apply and read them back: :mod:`tensegrity_ros.parameter_handling`);
 * messages -> simulator calls (``<m>/rho_cmd``, ``<m>/force_a3/a4``, ``joint_commands``,
-  runtime parameter sets, the ``reset`` service, the timer for speed-limited motion);
-* the calls' outcomes -> rejections counted in ``/diagnostics``, ``jumps`` messages, logs;
-  the simulator's state -> ``joint_states``, ``equilibrium``, ``stable``, ``head_pose``,
-  ``markers`` (message builders: :mod:`tensegrity_ros.ros_conversions`).
+  ``joint_trajectory`` through the core's :class:`~tensegrity_ros.core.trajectory.
+  TrajectoryPlayer`, runtime parameter sets, the ``~/reset`` service, the timer);
+* the calls' outcomes -> rejections counted in ``/diagnostics``, ``~/jumps`` and
+  ``~/motion`` messages, logs; the simulator's state -> ``joint_states``, ``~/equilibrium``,
+  ``~/stable``, ``~/head_pose``, ``~/markers``, ``/tf`` and the force parameters (message
+  builders: :mod:`tensegrity_ros.ros_conversions`).
+
+The node's own outputs and its service are private (``~/``: under the node's name), so
+that two tools in one graph cannot clash; the command topics and ``joint_states`` are
+relative (namespaces and remapping work for all of them).
 
 Run:  ``python -m tensegrity_ros.node --ros-args --params-file config/default.yaml``
 """
 from __future__ import annotations
 
 import os
-import re
 import signal
 import sys
 import time
@@ -28,39 +34,43 @@ if __name__ == '__main__' or os.path.basename(sys.argv[0]) == 'tensegrity_node':
     signal.signal(signal.SIGINT, lambda *_: os._exit(0))
     signal.signal(signal.SIGTERM, lambda *_: os._exit(0))
 
-import rclpy
-import rclpy.executors
-import rclpy.logging
-import rclpy.utilities
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, Vector3
-from rcl_interfaces.msg import SetParametersResult
-from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
-                              ParameterException)
+import rclpy
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+import rclpy.executors
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+import rclpy.logging
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
+import rclpy.utilities
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64
 from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from tensegrity_ros import node_parameters as params
+from tensegrity_ros import node_process as process
 from tensegrity_ros import ros_conversions as conv
-from tensegrity_ros.joint_state_names import NamesAndPositions, exact_names
-from tensegrity_ros.node_live_state import LiveStateReports
-from tensegrity_ros.log_text import clipped, shown
-from tensegrity_ros.params_file import ConfigError, check_parameter_file
-from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog,
-                                                      force_key, target_key)
-from tensegrity_ros.core.events import Deferred, Jump, JumpAhead, Passage, TrackingFailure
-from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
-from tensegrity_ros.core.simulator import Simulator
+from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog, force_key,
+                                                    target_key)
+from tensegrity_ros.core.events import Deferred, FAILED, Jump, JumpAhead, Passage, TrackingFailure
+from tensegrity_ros.core.frames import chord_frames
 from tensegrity_ros.core.stack import Stack
+from tensegrity_ros.core.trajectory import ABORTED, MotionEnded, TrajectoryPlayer
+from tensegrity_ros.joint_state_names import exact_names, NamesAndPositions
+from tensegrity_ros.log_text import clipped, shown
+from tensegrity_ros.node_live_state import LiveStateReports
+from tensegrity_ros.parameter_handling import ConfigurationError, ParameterHandling
+from tensegrity_ros.params_file import check_parameter_file, ConfigError
+
+try:                            # every ROS install has it; the PyPI wheels do not
+    from tf2_msgs.msg import TFMessage
+except ImportError:
+    TFMessage = None
 
 # ---------------------------------------------------------------------------
 # QoS (documented in msg_docs/ and README.md)
@@ -91,6 +101,13 @@ HEAD_QOS = STATUS_QOS
 MARKERS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: ``motion``: latched, so a client that subscribes after sending a trajectory still
+#: sees how it ended.
+MOTION_QOS = STATUS_QOS
+#: ``/tf``: what tf2_ros's TransformBroadcaster uses (DynamicBroadcasterQoS).
+TF_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                    reliability=ReliabilityPolicy.RELIABLE,
+                    durability=DurabilityPolicy.VOLATILE)
 
 DEFAULT_NODE_NAME = 'tensegrity'
 #: Start-up check for another node of the same name: every this many seconds, this many
@@ -105,23 +122,22 @@ WARN_THROTTLE_SEC = 2.0
 REJECT_REASONS = (
     'non_finite',            # NaN or inf in a command
     'out_of_range',          # rho outside [rho_min, rho_max]
-    'size_mismatch',         # JointState: no names, or len(position) != len(name)
-    'unknown_joint',         # JointState: a name that is not a commandable <m>_rho
-    'duplicate_joint',       # JointState: the same joint twice
+    'size_mismatch',         # JointState/JointTrajectory: no names, sizes that differ
+    'unknown_joint',         # JointState/JointTrajectory: not a commandable <m>_rho
+    'duplicate_joint',       # JointState/JointTrajectory: the same joint twice
+    'trajectory_time',       # JointTrajectory: time_from_start < 0 or not increasing
     'parameter_type',        # parameter set with the wrong type
     'parameter_read_only',   # parameter set on a read-only parameter
     'parameter_undeclared',  # parameter set on a name the node does not have
+    'parameter_delete',      # parameter delete (every parameter is declared, typed)
     'parameter_value',       # parameter value refused (range, physics, limits)
 )
-
-_MODULE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
-
-
-class ConfigurationError(RuntimeError):
-    """The node's start-up configuration (parameters) cannot be used."""
+#: Trajectory outcomes counted in ``/diagnostics`` (``trajectories_<state>``).
+TRAJECTORY_COUNTERS = ('trajectories_accepted', 'trajectories_succeeded',
+                       'trajectories_aborted', 'trajectories_canceled')
 
 
-class TensegrityNode(LiveStateReports, Node):
+class TensegrityNode(ParameterHandling, LiveStateReports, Node):
     """ROS 2 node around a core :class:`Simulator`: parameters -> its configuration,
     messages -> its calls, its outcomes -> publishers and logs.
 
@@ -144,6 +160,8 @@ class TensegrityNode(LiveStateReports, Node):
         self._counters.update(commands_processed=0, commands_coalesced=0,
                               callback_exceptions=0, jump_warnings=0,
                               tracking_failures=0, jumps_total=0, commands_deferred=0)
+        self._counters.update(dict.fromkeys(TRAJECTORY_COUNTERS, 0))
+        self._mirroring = False             # setting parameters to live values
         self._level_events = set()          # what happened since the last /diagnostics
         self._loggers = {}
         self._last_stable = None
@@ -155,6 +173,8 @@ class TensegrityNode(LiveStateReports, Node):
         self._init_live_state_reports()
         self._warn_unknown_overrides()
         self._sim = self._start_simulator()
+        self._player = TrajectoryPlayer(self._sim)
+        self._motion_status = conv.MotionStatusBuffer()
         self._published_revision = None     # simulator revision of the last statuses
         self._last_statuses = [None] * len(self._names)
         self._status_buffers = [conv.EquilibriumStatusBuffer() for _ in self._names]
@@ -178,10 +198,11 @@ class TensegrityNode(LiveStateReports, Node):
     def _create_interfaces(self):
         """Publishers, subscriptions, the reset service, the timer, parameter callbacks.
 
-        Names are relative so that namespaces and remapping work (/diagnostics is absolute
-        by ROS convention).  No per-endpoint QoS event handlers: each is a waitable the
-        executor re-adds to its wait set before every callback (about 20 us each); QoS
-        mismatches are still reported by the peer.
+        The node's own outputs and its service are private (``~/``), the commands and
+        joint_states relative, so that namespaces and remapping work (/diagnostics and /tf
+        are absolute by ROS convention).  No per-endpoint QoS event handlers: each is a
+        waitable the executor re-adds to its wait set before every callback (about 20 us
+        each); QoS mismatches are still reported by the peer.
         """
         def publisher(msg_type, topic, qos):
             return self.create_publisher(
@@ -197,17 +218,22 @@ class TensegrityNode(LiveStateReports, Node):
                 event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False)))
 
         self._js_pub = publisher(JointState, 'joint_states', STATE_QOS)
-        self._stable_pub = publisher(Bool, 'stable', STATUS_QOS)
+        self._stable_pub = publisher(Bool, '~/stable', STATUS_QOS)
         # one latched status per module, published all N together: depth N keeps every
         # module's latest for a late subscriber (N = 1: depth 1, as STATUS_QOS)
         eq_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=len(self._names),
                             reliability=ReliabilityPolicy.RELIABLE,
                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self._eq_pub = publisher(DiagnosticStatus, 'equilibrium', eq_qos)
-        self._jumps_pub = publisher(DiagnosticStatus, 'jumps', JUMPS_QOS)
+        self._eq_pub = publisher(DiagnosticStatus, '~/equilibrium', eq_qos)
+        self._jumps_pub = publisher(DiagnosticStatus, '~/jumps', JUMPS_QOS)
         self._diag_pub = publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
-        self._markers_pub = publisher(MarkerArray, 'markers', MARKERS_QOS)
-        self._head_pub = publisher(PoseStamped, 'head_pose', HEAD_QOS)
+        self._markers_pub = publisher(MarkerArray, '~/markers', MARKERS_QOS)
+        self._head_pub = publisher(PoseStamped, '~/head_pose', HEAD_QOS)
+        self._motion_pub = publisher(DiagnosticStatus, '~/motion', MOTION_QOS)
+        self._tf_pub = publisher(TFMessage, '/tf', TF_QOS) if TFMessage is not None else None
+        if self._tf_pub is None:
+            self.get_logger().info('tf2_msgs is not installed: no TF on /tf (markers and '
+                                   'head_pose carry the frame); a ROS install has it')
 
         for i, m in enumerate(self._names):
             subscription(Float64, f'{m}/rho_cmd', self._read_rho(i))
@@ -215,22 +241,15 @@ class TensegrityNode(LiveStateReports, Node):
                 subscription(Vector3, f'{m}/force_{node}', self._read_force(i, node))
         # serialized: joint names are read exactly (rclpy would cut them at a NUL)
         subscription(JointState, 'joint_commands', self._read_joint_commands, raw=True)
-        self.create_service(Trigger, 'reset', self._on_reset)
+        subscription(JointTrajectory, 'joint_trajectory', self._read_joint_trajectory)
+        self.create_service(Trigger, '~/reset', self._on_reset)
 
         # One timer serves joint_states, speed-limited motion, markers and /diagnostics
         # (fewer wait-set entities = less executor overhead per command).
         self._tick_timer = self.create_timer(
             1.0 / self.get_parameter('publish_rate').value, self._guard(self._on_tick, 'timer'))
-        self._periodic = {}         # name -> [period_ns or 0 (off), next due ns]
-        now = self._now_ns()
-        for name in ('markers_rate', 'diagnostics_rate'):
-            self._periodic[name] = [0, now]
-            self._set_periodic(name, self.get_parameter(name).value, now)
-        self._frame_id = self.get_parameter('frame_id').value
-
-        self.add_pre_set_parameters_callback(self._pre_set_parameters)
-        self.add_on_set_parameters_callback(self._validate_parameters)
-        self.add_post_set_parameters_callback(self._apply_parameters)
+        self._set_frames()
+        self._watch_parameters()
 
     def _check_name_unique(self):
         """Start-up: WARN once if another node in the graph has this fully qualified name
@@ -247,208 +266,6 @@ class TensegrityNode(LiveStateReports, Node):
         if same > 1 or self._name_checks <= 0:
             self._name_timer.cancel()
             self.destroy_timer(self._name_timer)
-
-    # -- start-up: parameters -> simulator ---------------------------------------------
-
-    def _declare_modules(self):
-        try:
-            names = self.declare_parameter(
-                'modules', ['m0'],
-                params.descriptor(
-                    'Hosted modules, bottom to top (names of topics and parameter '
-                    'prefixes). Read-only. One module, or a stack (neck) of up to '
-                    f'{params.MAX_MODULES}: module i+1 sits on the top chord of module i.',
-                    type_=params.STRING_ARRAY, read_only=True,
-                    constraints=f'1..{params.MAX_MODULES} distinct module names')).value
-        except ParameterException as exc:
-            raise ConfigurationError(f'parameter modules: {exc}') from None
-        names = list(names or [])
-        if not 1 <= len(names) <= params.MAX_MODULES:
-            raise ConfigurationError(
-                f'modules: {len(names)} modules given; a node hosts 1 to {params.MAX_MODULES} '
-                f'modules (bottom to top), e.g. [m0] or [m0, m1, m2]')
-        if len(set(names)) != len(names):
-            raise ConfigurationError(f'modules={names}: module names must be distinct')
-        for m in names:
-            if not _MODULE_NAME.match(m):
-                raise ConfigurationError(
-                    f'module name {shown(m)}: use a letter followed by letters, digits or _')
-        return names
-
-    def _coerce_overrides(self, types):
-        """Integers given for double parameters (``L1: 1`` in YAML) are taken as doubles."""
-        overrides = self._parameter_overrides
-        for name, type_ in types.items():
-            p = overrides.get(name)
-            if p is None:
-                continue
-            if type_ == params.DOUBLE and p.type_ == Parameter.Type.INTEGER:
-                overrides[name] = Parameter(name, params.DOUBLE, float(p.value))
-            elif type_ == params.DOUBLE_ARRAY and p.type_ == Parameter.Type.INTEGER_ARRAY:
-                overrides[name] = Parameter(name, params.DOUBLE_ARRAY,
-                                            [float(v) for v in p.value])
-
-    def _declare_parameters(self):
-        self._coerce_overrides(params.parameter_types(self._names))
-        declarations = params.declarations(self._names)
-        self._declared = [name for name, _, _ in declarations]
-        for name, default, descriptor in declarations:
-            try:
-                self.declare_parameter(name, default, descriptor)
-            except (InvalidParameterTypeException, InvalidParameterValueException,
-                    ParameterException) as exc:
-                raise ConfigurationError(f'parameter {name}: {exc}') from None
-        values = self._current_values()
-        reason = params.check_node_values(values, self._names) or next(
-            (r for r in (params.check_module_values(m, params.module_getter(m, values))
-                         for m in self._names) if r), '')
-        if reason:
-            raise ConfigurationError(reason)
-
-    def _warn_unknown_overrides(self):
-        known = set(self._declared) | {'modules', 'use_sim_time'}
-        for name in sorted(set(self._parameter_overrides) - known):
-            self.get_logger().warning(f'ignoring unknown parameter {shown(name)}')
-
-    def _initial_configuration(self):
-        """(modules at rho_initial, initial_theta of each) from the parameter values."""
-        getters = [params.module_getter(m, self._current_values()) for m in self._names]
-        return ([params.initial_params(get) for get in getters],
-                [get('initial_theta') for get in getters])
-
-    def _start_simulator(self):
-        modules, thetas = self._initial_configuration()
-        values = self._current_values()
-        limits = [params.module_limits(params.module_getter(m, values)) for m in self._names]
-        try:
-            if self._dynamics:
-                return DynamicSimulator(modules, thetas, limits, names=self._names,
-                                        damping=[params.module_getter(m, values)('damping')
-                                                 for m in self._names])
-            return Simulator(modules, thetas, limits, names=self._names)
-        except ValueError as exc:
-            raise ConfigurationError(
-                f'{", ".join(self._names)} at rho_initial {[m.rho for m in modules]}, '
-                f'initial_theta {thetas}: {exc}') from None
-
-    # -- parameters at runtime ----------------------------------------------------------
-
-    def _current_values(self):
-        return {p.name: p.value for p in self.get_parameters(self._declared)}
-
-    def _pre_set_parameters(self, parameters):
-        """Runs before rclpy's own checks: coerce int -> double, count what rclpy will refuse."""
-        try:
-            out = []
-            for p in parameters:
-                if not self.has_parameter(p.name):
-                    self._reject('parameter_undeclared', f'no parameter named {shown(p.name)}')
-                    out.append(p)
-                    continue
-                d = self.describe_parameter(p.name)
-                if d.type == params.DOUBLE.value and p.type_ == Parameter.Type.INTEGER:
-                    p = Parameter(p.name, params.DOUBLE, float(p.value))
-                elif d.type == params.DOUBLE_ARRAY.value and \
-                        p.type_ == Parameter.Type.INTEGER_ARRAY:
-                    p = Parameter(p.name, params.DOUBLE_ARRAY, [float(v) for v in p.value])
-                if d.read_only:
-                    self._reject('parameter_read_only', f'{p.name} is read-only')
-                elif p.type_.value != d.type:
-                    self._reject('parameter_type',
-                                 f'{p.name}: wrong type {p.type_.name}, expected '
-                                 f'{Parameter.Type(d.type).name}')
-                elif d.floating_point_range and p.type_ == params.DOUBLE:
-                    r = d.floating_point_range[0]
-                    if not r.from_value <= p.value <= r.to_value:
-                        self._reject('parameter_value',
-                                     f'{p.name}={p.value!r} outside [{r.from_value}, '
-                                     f'{r.to_value}]')
-                out.append(p)
-            return out
-        except Exception as exc:        # never raise into rclpy
-            self._count_exception('pre-set parameters', exc)
-            return parameters
-
-    def _validate_parameters(self, parameters):
-        """on-set callback: accept or refuse (with a reason) without changing any state."""
-        try:
-            reason = self._refusal(parameters)
-        except Exception as exc:
-            self._count_exception('parameter validation', exc)
-            reason = f'internal error while validating: {exc!r}'
-        if reason:
-            self._reject('parameter_value', f'parameter change refused: {reason}')
-            return SetParametersResult(successful=False, reason=reason)
-        return SetParametersResult(successful=True)
-
-    def _refusal(self, parameters):
-        values = self._current_values()
-        for p in parameters:
-            if p.type_ == Parameter.Type.NOT_SET:
-                return f'{p.name} cannot be unset'
-            values[p.name] = p.value
-        reason = params.check_node_values(values, self._names)
-        if reason:
-            return reason
-        for i in self._affected_modules(parameters):
-            m = self._names[i]
-            get = params.module_getter(m, values)
-            reason = params.check_module_values(m, get)
-            if reason:
-                return reason
-            reason = self._sim.limits_refusal(i, get('rho_min'), get('rho_max'))
-            if reason:
-                return f'{m}: {reason}'
-        return ''
-
-    def _affected_modules(self, parameters):
-        """{module index: [changed keys]} of the module parameters in ``parameters``."""
-        affected = {}
-        for p in parameters:
-            m, _, key = p.name.partition('.')
-            if key and m in self._names:
-                affected.setdefault(self._names.index(m), []).append(key)
-        return affected
-
-    def _apply_parameters(self, parameters):
-        """post-set callback: node settings; module settings; then every physical or
-        force change of the set on one tracked path."""
-        try:
-            names = {p.name for p in parameters}
-            if 'publish_rate' in names:
-                self._tick_timer.timer_period_ns = int(1e9 / self.get_parameter(
-                    'publish_rate').value)
-            for name in ('markers_rate', 'diagnostics_rate'):
-                if name in names:
-                    self._set_periodic(name, self.get_parameter(name).value, self._now_ns())
-            if 'frame_id' in names:
-                self._frame_id = self.get_parameter('frame_id').value
-            values, now = self._current_values(), self._now_ns()
-            changes, changed_names = {}, []
-            for i, keys in self._affected_modules(parameters).items():
-                m = self._names[i]
-                get = params.module_getter(m, values)
-                self._report(self._sim.set_limits(i, params.module_limits(get), now))
-                if self._dynamics and 'damping' in keys:
-                    self._report(self._sim.set_damping(i, get('damping'), now))
-                moving = [k for k in keys if params.kind_of(k) in (params.PHYSICAL,
-                                                                    params.FORCE)]
-                if moving:
-                    changes[i] = params.design_changes(get, self._sim.goal(i), moving)
-                    changed_names += [f'{m}.{k}' for k in moving]
-            if changes:
-                cause = 'parameter ' + ', '.join(sorted(changed_names))
-                self._command(self._sim.set_parameters(changes, now, cause), 'parameters',
-                              now, count=1)
-            self._publish_statuses_if_changed()
-        except Exception as exc:
-            self._count_exception('parameter change', exc)
-
-    def _set_periodic(self, name, rate, now_ns):
-        """markers_rate / diagnostics_rate: served by the publish_rate timer (0 = off)."""
-        entry = self._periodic[name]
-        entry[0] = int(1e9 / rate) if rate > 0.0 else 0
-        entry[1] = now_ns + entry[0]
 
     # -- callbacks, rejections ------------------------------------------------------------
 
@@ -567,7 +384,36 @@ class TensegrityNode(LiveStateReports, Node):
         return target_key(targets), lambda: self._apply_targets(
             targets, 'joint_commands', 'joint_commands')
 
-    def _joint_indices(self, names):
+    def _read_joint_trajectory(self, msg):
+        """A JointTrajectory (JointTrajectoryController's topic interface): ``<m>_rho``
+        joints, positions at time_from_start; read into a core Trajectory, checked by the
+        player (sizes, times, finite, limits).  No points: cancel the running one."""
+        topic = 'joint_trajectory'
+        if msg.points and not msg.joint_names:
+            return self._reject('size_mismatch', f'{topic}: points but no joint names')
+        indices, problem = self._joint_indices(list(msg.joint_names), topic)
+        if problem is not None:
+            return self._reject(*problem)
+        trajectory = conv.trajectory(msg, indices)
+        if isinstance(trajectory, tuple):               # (reason, text): a bad message
+            return self._reject(trajectory[0], f'{topic}: {trajectory[1]}')
+        refusal = self._player.refusal(trajectory) if trajectory.positions else None
+        if refusal is not None:
+            return self._reject(refusal.reason, f'{topic}: {refusal.message}')
+        return ('trajectory',), lambda: self._apply_trajectory(trajectory)
+
+    def _apply_trajectory(self, trajectory):
+        now = self._now_ns()
+        outcome = self._player.follow(trajectory, now)
+        if outcome.accepted and trajectory.positions:
+            self._counters['trajectories_accepted'] += 1
+            self.get_logger().info(
+                f'joint_trajectory {self._player.status.number}: {len(trajectory.times_ns)} '
+                f'points over {trajectory.duration_ns * 1e-9:.6g} s')
+        self._command(outcome, 'joint_trajectory', now)
+        self._publish_motion()
+
+    def _joint_indices(self, names, topic='joint_commands'):
         """(the module index of every joint name, None), or (None, (reason, text)) if a
         name is unknown or given twice; kept for the last list of names (a stream of
         commands repeats the very list: :class:`NamesAndPositions`)."""
@@ -578,38 +424,43 @@ class TensegrityNode(LiveStateReports, Node):
         for name in names:
             index = self._rho_joints.get(name)
             if index is None:
-                problem = ('unknown_joint', f'joint_commands: unknown joint {shown(name)} '
+                problem = ('unknown_joint', f'{topic}: unknown joint {shown(name)} '
                                             f'(commandable: {sorted(self._rho_joints)})')
                 break
             if index in indices:
-                problem = ('duplicate_joint', f'joint_commands: {shown(name)} given twice')
+                problem = ('duplicate_joint', f'{topic}: {shown(name)} given twice')
                 break
             indices.append(index)
         found = (None, problem) if problem is not None else (indices, None)
-        self._kept_joint_indices = (names, found)
+        if topic == 'joint_commands':
+            self._kept_joint_indices = (names, found)
         return found
 
     def _apply_targets(self, targets, source, cause):
         now = self._now_ns()
-        self._command(self._sim.command_rhos(targets, now, cause), source, now)
+        self._command(self._player.command_rhos(targets, now, cause), source, now)
 
     def _apply_force(self, index, node, force, source):
         now = self._now_ns()
-        self._command(self._sim.set_force(index, node, force, now), source, now)
+        self._command(self._sim.set_force(index, node, force, now), source, now, loads=True)
 
-    def _command(self, outcome, source, now_ns, count=1):
+    def _command(self, outcome, source, now_ns, loads=False):
         """Report a command's outcome: a refusal is counted and dropped; otherwise its
-        events are published and the new state goes out stamped ``now_ns``."""
+        events are published and the new state goes out stamped ``now_ns``; the design and
+        force parameters follow the live values if the command set them (``loads``) or a
+        path stopped early."""
         if not outcome.accepted:
             return self._reject(outcome.reason, f'{source}: {outcome.message}')
-        self._counters['commands_processed'] += count
+        self._counters['commands_processed'] += 1
         self._report(outcome)
         self._publish_joint_states(now_ns)
+        if loads or outcome.status == FAILED:
+            self._sync_parameters()
 
     def _on_reset(self, request, response):
         try:
             modules, thetas = self._initial_configuration()
-            outcome = self._sim.reset(modules, thetas)
+            outcome = self._player.reset(modules, thetas)
             if not outcome.accepted:
                 response.success = False
                 response.message = f'reset failed, state unchanged: {outcome.message}'
@@ -654,8 +505,19 @@ class TensegrityNode(LiveStateReports, Node):
                 self._report_deferred(event)
             elif isinstance(event, Passage):
                 self._report_passage(event)
+            elif isinstance(event, MotionEnded):
+                self._report_motion_ended(event)
         if jumped:
             self._publish_statuses()
+
+    def _report_motion_ended(self, ended):
+        self._counters[f'trajectories_{ended.state}'] += 1
+        text = f'joint_trajectory {ended.number} {ended.state}: {ended.text}'
+        if ended.state == ABORTED:
+            self.get_logger().warning(text)
+        else:
+            self.get_logger().info(text)
+        self._publish_motion()
 
     def _report_jump(self, jump):
         self._counters['jumps_total'] += 1
@@ -671,7 +533,8 @@ class TensegrityNode(LiveStateReports, Node):
         """A continuous buckling is no jump (nothing on ``jumps``), but the state left a
         symmetric branch for one side: say so once, at INFO."""
         m = self._names[passage.module]
-        rhos = ', '.join(f'{name} rho={p.rho:.6g}' for name, p in zip(self._names, passage.modules))
+        rhos = ', '.join(f'{name} rho={p.rho:.6g}'
+                         for name, p in zip(self._names, passage.modules))
         self.get_logger().info(f'{m}: passed a branch point continuously ({passage.cause}) at '
                                f'{rhos}: the mechanism buckled smoothly to one side, no jump')
 
@@ -713,8 +576,32 @@ class TensegrityNode(LiveStateReports, Node):
         """The whole state at once (start-up, reset)."""
         self._publish_joint_states()
         self._publish_head_pose()
+        self._publish_tf(self._now_ns())
         self._publish_statuses()
+        self._publish_motion()
         self._on_markers_tick()
+
+    def _set_frames(self):
+        """Frame names from frame_prefix and frame_id: the root, each top chord, the head."""
+        self._frame_id, chords, head = params.frame_names(
+            self.get_parameter('frame_prefix').value, self.get_parameter('frame_id').value,
+            self._names)
+        self._tf = conv.FrameChain(self._frame_id, chords + [head])
+
+    def _publish_tf(self, now_ns):
+        """/tf: frame_id -> each module's top chord -> head (core.frames), stamped now."""
+        if self._tf_pub is None:
+            return
+        links = chord_frames([self._sim.module_nodes(i) for i in range(len(self._names))])
+        self._tf_pub.publish(TFMessage(transforms=self._tf.update(links, now_ns)))
+
+    def _publish_motion(self):
+        """~/motion: the trajectory player's status (latched), when it changed."""
+        if self._player.status is self._motion_status.status:
+            return
+        self._motion_pub.publish(self._motion_status.update(
+            name=f'{self.get_name()}: motion', hardware_id=self._hardware_id,
+            modules=self._names, status=self._player.status))
 
     def _publish_statuses(self):
         """equilibrium of every module (all N together, in module order), and stable if
@@ -737,11 +624,15 @@ class TensegrityNode(LiveStateReports, Node):
 
     def _on_tick(self):
         now = self._now_ns()
-        self._report(self._sim.advance(now))
+        advanced = self._player.advance(now)
+        self._report(advanced)
         self._report_progress()
         self._publish_joint_states(now)
         self._publish_head_pose()
+        self._publish_tf(now)
         self._publish_statuses_if_changed()
+        if advanced.status == FAILED:       # a path stopped early: loads on the way
+            self._sync_parameters()
         for name, action in (('markers_rate', self._on_markers_tick),
                              ('diagnostics_rate', self._publish_diagnostics)):
             entry = self._periodic[name]
@@ -820,62 +711,6 @@ class TensegrityNode(LiveStateReports, Node):
         return dict(self._counters)
 
 
-def _make_executor(kind):
-    """The executor ``main`` spins: ``events`` (default) or ``single``.
-
-    ``events`` is rclpy's C++ events executor (``rclpy.experimental.EventsExecutor``,
-    shipped with Jazzy's rclpy): it dispatches a callback for a fraction of the Python
-    SingleThreadedExecutor's per-callback cost, which is what lets the node keep up with
-    1 kHz commands.  ``single`` is the classic ``rclpy.spin`` executor.
-    """
-    if kind == 'events':
-        try:
-            from rclpy.experimental import EventsExecutor
-            return EventsExecutor()
-        except ImportError:           # an rclpy without it: fall back
-            pass
-    return rclpy.executors.SingleThreadedExecutor()
-
-
-def _parse_cli(argv):
-    import argparse
-    parser = argparse.ArgumentParser(
-        prog='tensegrity_node',
-        description='Tensegrity module node: tracks the stable equilibrium, reports jumps. '
-                    'ROS arguments follow --ros-args (e.g. --params-file config/default.yaml).')
-    parser.add_argument('--executor', choices=('events', 'single'), default='events',
-                        help='events: rclpy EventsExecutor (fast, default); '
-                             'single: SingleThreadedExecutor (rclpy.spin)')
-    return parser.parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
-
-
-class _Interrupt:
-    """SIGINT/SIGTERM handler behind rclpy's (which shuts the context down, then calls
-    this): while starting, stop at once (KeyboardInterrupt); once spinning, do nothing --
-    the shut-down context ends the spin loop, while an exception raised here would land
-    inside whatever callback is running (the events executor then logs it as FATAL)."""
-
-    def __init__(self):
-        self.spinning = False
-
-    def __call__(self, signum, frame):
-        if not self.spinning:
-            raise KeyboardInterrupt
-
-
-def _parameter_files(argv):
-    """The ``--params-file`` paths among the ROS arguments of ``argv``."""
-    paths, in_ros_args = [], False
-    for i, arg in enumerate(argv):
-        if arg == '--ros-args':
-            in_ros_args = True
-        elif arg == '--':
-            in_ros_args = False
-        elif in_ros_args and arg == '--params-file' and i + 1 < len(argv):
-            paths.append(argv[i + 1])
-    return paths
-
-
 def _fatal(text):
     """One FATAL log line (the exit status 2 path of an unusable configuration)."""
     rclpy.logging.get_logger(DEFAULT_NODE_NAME).fatal(clipped(f'invalid configuration: {text}'))
@@ -885,9 +720,9 @@ def main(args=None):
     """Entry point of ``tensegrity_node``: 0 on normal exit or Ctrl-C, 2 on a bad configuration."""
     argv = sys.argv if args is None else args
     try:
-        for path in _parameter_files(argv):
+        for path in process.parameter_files(argv):
             check_parameter_file(path)
-        options = _parse_cli(argv)
+        options = process.parse_cli(argv)
     except ConfigError as exc:
         _fatal(exc)
         return 2
@@ -899,12 +734,12 @@ def main(args=None):
     try:
         # SIGINT and SIGTERM: rclpy's handlers, installed by rclpy.init, shut the context
         # down first and then chain to this one.
-        interrupt = _Interrupt()
+        interrupt = process.Interrupt()
         signal.signal(signal.SIGINT, interrupt)
         signal.signal(signal.SIGTERM, interrupt)
         rclpy.init(args=argv)
         node = TensegrityNode()
-        executor = _make_executor(options.executor)
+        executor = process.make_executor(options.executor)
         executor.add_node(node)
         interrupt.spinning = True
         # spin_once in a loop rather than spin(): the events executor's spin() does not
@@ -922,25 +757,10 @@ def main(args=None):
         if rclpy.ok():
             raise
     finally:
-        _quietly(executor.shutdown if executor is not None else None)
-        _quietly(node.destroy_node if node is not None else None)
-        _quietly(rclpy.try_shutdown)
+        process.quietly(executor.shutdown if executor is not None else None)
+        process.quietly(node.destroy_node if node is not None else None)
+        process.quietly(rclpy.try_shutdown)
     return 0
-
-
-def _quietly(cleanup):
-    """Run a clean-up step; tolerate the signal handler shutting the context concurrently.
-
-    rclpy's SIGINT/SIGTERM handler shuts the context down from its own thread: a
-    ``try_shutdown`` racing with it can raise "rcl_shutdown already called".
-    """
-    if cleanup is None:
-        return
-    try:
-        cleanup()
-    except Exception:
-        if rclpy.ok():
-            raise
 
 
 if __name__ == '__main__':

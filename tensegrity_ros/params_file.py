@@ -27,12 +27,12 @@ Used by the ``tensegrity`` CLI (``--config``); imports neither rclpy nor any ROS
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import math
 import re
-from dataclasses import dataclass
 
 from .core import InvalidParameterError, ModuleParams
-from .module_parameters import MODULE_DEFAULTS, initial_params
+from .module_parameters import initial_params, MODULE_DEFAULTS
 
 _PAIRS = ('force_a3', 'force_a4', 'initial_theta')
 _POSITIVE = ('L1', 'L2', 'k', 'rho_initial')

@@ -9,16 +9,17 @@ enough to round-trip a double exactly): parse them with ``float(value)``.
 from __future__ import annotations
 
 import array
+import math
 import struct
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-import math
-
-from geometry_msgs.msg import Point, PoseStamped
+from geometry_msgs.msg import Point, PoseStamped, TransformStamped
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
+
+from tensegrity_ros.core.trajectory import ABORTED, Trajectory
 
 OK = DiagnosticStatus.OK
 WARN = DiagnosticStatus.WARN
@@ -402,3 +403,81 @@ class ModuleMarkers:
 
 def marker_array(markers) -> MarkerArray:
     return MarkerArray(markers=list(markers))
+
+
+class FrameChain:
+    """The /tf transforms of the frame chain (``core.frames.chord_frames``), pre-built and
+    updated in place: ``parent`` -> ``children[0]`` -> ``children[1]`` ... (each module's
+    top chord, then the head)."""
+
+    def __init__(self, parent, children):
+        self.transforms = []
+        for frame in children:
+            t = TransformStamped()
+            t.header.frame_id, t.child_frame_id = parent, frame
+            self.transforms.append(t)
+            parent = frame
+
+    def update(self, links, now_ns):
+        """The transforms with the planar ``links`` (x, y, yaw) and the stamp ``now_ns``."""
+        sec, nanosec = divmod(now_ns, 1_000_000_000)
+        for t, link in zip(self.transforms, links):
+            t.header.stamp.sec, t.header.stamp.nanosec = sec, nanosec
+            v = t.transform.translation
+            v.x, v.y, v.z = float(link.x), float(link.y), 0.0
+            q = t.transform.rotation
+            q.x, q.y, q.z, q.w = link.quaternion
+        return self.transforms
+
+
+def trajectory(msg, joints):
+    """A core :class:`~tensegrity_ros.core.trajectory.Trajectory` of a
+    ``trajectory_msgs/JointTrajectory`` whose joint names are the modules ``joints``
+    (indices), or (reason, text) if its arrays do not fit the names.  Positions only:
+    velocities, accelerations and effort may be given (of the names' size) but are not
+    used (the path between points is linear, as the controller's for positions)."""
+    n = len(joints)
+    times, rows = [], []
+    for k, point in enumerate(msg.points):
+        if len(point.positions) != n:
+            return 'size_mismatch', (f'point {k} has {len(point.positions)} positions for '
+                                     f'{n} joint names')
+        for field in ('velocities', 'accelerations', 'effort'):
+            size = len(getattr(point, field))
+            if size not in (0, n):
+                return 'size_mismatch', (f'point {k} has {size} {field} for {n} joint names '
+                                         f'(0 or {n})')
+        d = point.time_from_start
+        times.append(int(d.sec) * 1_000_000_000 + int(d.nanosec))
+        rows.append(tuple(float(v) for v in point.positions))
+    stamp = msg.header.stamp
+    start = int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+    return Trajectory(joints=tuple(joints), times_ns=tuple(times), positions=tuple(rows),
+                      start_ns=start or None)
+
+
+class MotionStatusBuffer:
+    """The ``~/motion`` DiagnosticStatus (msg_docs/motion.md) of the trajectory player's
+    :class:`~tensegrity_ros.core.trajectory.MotionStatus`, made again only when it changed."""
+
+    def __init__(self):
+        self.msg = None
+        self.status = None          # the MotionStatus of msg
+
+    def update(self, *, name, hardware_id, modules, status):
+        if self.msg is not None and status is self.status:
+            return self.msg
+        self.status = status
+        joints = [f'{modules[j]}_rho' for j in status.joints]
+        self.msg = DiagnosticStatus(
+            level=WARN if status.state == ABORTED else OK, name=name,
+            message=f'{status.state}: {status.text}', hardware_id=hardware_id)
+        self.msg.values = key_values([
+            ('state', status.state),
+            ('id', status.number),
+            ('joints', '[' + ', '.join(joints) + ']'),
+            ('goal', fmt_vector(status.goal)),
+            ('duration', float(status.duration)),
+            ('points', status.points),
+        ])
+        return self.msg

@@ -5,7 +5,7 @@ Written for the tests; shares no code with ``tensegrity_ros.core`` nor with
 points in the plane (4N coordinates; A1(0), A2(0) are fixed).  Every rigid length
 (both rods of every module, every chord |A3(i) - A4(i)| = rho(i + 1)) is a stiff
 linear spring of stiffness ``stiffness`` and rest length the rigid length; the
-module springs a, b, c have zero free length (DESIGN.md section 1); the loads are
+module springs a, b, c have zero free length (docs/model.md section 1); the loads are
 constant node forces in the base frame.  Two overdamped motions, integrated with
 ``scipy.integrate.solve_ivp`` (LSODA): node drag (dx/dt = -grad E, the same drag on
 every node coordinate) and pivot damping (the local angles' gradient flow with the
@@ -65,8 +65,8 @@ class NodeSpringNeck:
         return np.vstack([self.fixed, np.asarray(x, dtype=float).reshape(-1, 2)])
 
     def nodes_from_angles(self, theta):
-        """Moving node coordinates (..., 4N) from local angles (..., N, 2) or (..., 2N), DESIGN.md
-        sections 1 and 4: module i's frame has its origin at A1(i) and its x axis along
+        """Moving node coordinates (..., 4N) from local angles (..., N, 2) or (..., 2N),
+        docs/model.md sections 1 and 4: module i's frame has its origin at A1(i) and its x axis along
         A1 -> A2.  Complex angles are fine (complex steps)."""
         theta = np.asarray(theta)
         if theta.shape[-2:] != (self.n, 2):               # flat states (..., 2N)
@@ -151,7 +151,7 @@ class NodeSpringNeck:
     # 'node': dx/dt = -dE/dx, the same drag on every node coordinate (the metric of the
     # tracker's landing flow).  'pivot': d theta/dt = -dE/d theta in the local angles,
     # rods rigid and chords stiff springs: the overdamped limit of viscous damping on
-    # every pivot's local angle rate (DESIGN.md section 9, core/neck_dynamics.py).
+    # every pivot's local angle rate (docs/model.md section 5, core/neck_dynamics.py).
     def coordinates(self, theta, damping):
         """The flow's state for local angles theta: node coordinates or the angles."""
         return self.nodes_from_angles(theta) if damping == 'node' else np.ravel(theta).astype(float)

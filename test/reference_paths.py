@@ -24,8 +24,8 @@ continuous state with the parameters frozen at the bracket's far end (past a fol
 ``LANDING_OFFSET`` further on: the flow through the fold's ghost takes a time
 ~ 1 / sqrt(s - s*)).
 
-One module: energy, gradient and Hessian written again from DESIGN.md section 1.
-A neck of N modules (DESIGN.md section 4): the 2N local angles, the energy from the
+One module: energy, gradient and Hessian written again from docs/model.md section 1.
+A neck of N modules (docs/model.md section 4): the 2N local angles, the energy from the
 node positions (forward kinematics written here), the N - 1 chord constraints
 |A3(i) - A4(i)| = rho(i + 1); the flow is the angle-space gradient projected on the
 constraints' tangent space (plus a pull back onto them), rest points are KKT points
@@ -105,7 +105,7 @@ def values_of(params):
     return np.array([float(getattr(params, name)) for name in FIELDS]), float(params.g)
 
 
-# -- one module (DESIGN.md section 1) -----------------------------------------------------
+# -- one module (docs/model.md section 1) -----------------------------------------------------
 
 @dataclass(frozen=True)
 class Point:
@@ -268,7 +268,7 @@ class ModuleSystem:
         return bool(np.max(np.abs(self.gradient(t, s))) <= tol * scale and low > 0)
 
 
-# -- the neck (DESIGN.md section 4) ---------------------------------------------------------
+# -- the neck (docs/model.md section 4) ---------------------------------------------------------
 
 class NeckSystem:
     """N stacked modules in their 2N local angles with N - 1 chord constraints.

@@ -1,4 +1,4 @@
-"""The offline CLI ``tensegrity`` (DESIGN.md section 6): solve, track, map, diagram.
+"""The offline CLI ``tensegrity`` (docs/cli.md): solve, track, map, diagram.
 
 Run in-process through ``main(argv)``; one test runs the installed console script.
 """
@@ -395,7 +395,7 @@ def test_diagram_png_and_csv(capsys, tmp_path):
 
 
 # ---------------------------------------------------------------------------
-# the neck stack: solve / track with several modules (DESIGN.md section 4)
+# the neck stack: solve / track with several modules (docs/model.md section 4)
 
 ROOT = Path(__file__).resolve().parents[1]
 NECK = ROOT / 'config' / 'neck.yaml'

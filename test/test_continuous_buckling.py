@@ -247,7 +247,7 @@ def test_a_neck_command_from_just_past_its_passage_back_through_it_ends_unbuckle
 
 
 def module_hessian_upright(rho, length=1.0, k=100.0):
-    """DESIGN.md section 1's Hessian of the unloaded module (L1 = L2 = length, ka = kb =
+    """docs/model.md section 1's Hessian of the unloaded module (L1 = L2 = length, ka = kb =
     kc = k) at theta = (0, 0), written out here rather than taken from the code."""
     h11 = length * ((k + k) * rho - k * length)
     h12 = -k * length * length
@@ -346,7 +346,7 @@ def test_a_module_command_from_just_past_its_passage_back_towards_it_ends_ok():
 
 def test_a_tracked_module_state_verified_by_the_margin_test_reads_stable():
     """Within ~1e-8 in rho of the unloaded paper module's branch point (rho = 1) the upright
-    state's lambda_min / lambda_max (DESIGN.md's Hessian: 2 k (rho - 1) over 2 k rho) lies
+    state's lambda_min / lambda_max (docs/model.md's Hessian: 2 k (rho - 1) over 2 k rho) lies
     between the tracker's margin (1e-9) and the classification's degeneracy tolerance
     (1e-8): the tracker verifies it, the classification reads 'degenerate'.  The tracked
     record says so (MARGIN_CERTIFIED) and is ``stable``, and the simulator (the node's
@@ -378,7 +378,7 @@ def test_a_tracked_module_state_verified_by_the_margin_test_reads_stable():
 
 def test_a_command_ending_exactly_at_the_branch_point_ends_on_it():
     """The default node's module (the unloaded paper module) commanded to rho = 1.0, its
-    branch point exactly (DESIGN.md's Hessian is singular there: eigenvalues 0 and 2 k),
+    branch point exactly (docs/model.md's Hessian is singular there: eigenvalues 0 and 2 k),
     from above on the upright branch and from below on the buckled one: ok, no jump, on
     the upright state theta = 0 (a degenerate minimum: the supercritical pitchfork's
     quartic term; Newton in its cubic valley pins it to ~1e-8 rad), stable (certified:

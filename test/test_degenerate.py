@@ -1,4 +1,4 @@
-"""Degenerate parameters, explicitly (DESIGN.md section 3: "not optional").
+"""Degenerate parameters, explicitly (docs/model.md section 3: "not optional").
 
 Unloaded and horizontal-only loads (the flat configurations share t1 in {0, pi}),
 exact symmetry, tiny rho, huge forces, a continuum of equilibria, and points on

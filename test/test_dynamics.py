@@ -1,4 +1,4 @@
-"""Snap-through dynamics (DESIGN.md section 9) against references that share none of its code.
+"""Snap-through dynamics (docs/model.md section 5) against references that share none of its code.
 
 The references are written here: the energy from node positions, the rigid-body
 kinetic energy of two bars (rod 2's pivot moving with rho), the Hessian by finite

@@ -1,6 +1,7 @@
 """The package's import arrows all point down (README, "Package layout"): no cycles, the
 core imports nothing outside it, figures never import the command line, and only the
-ROS layer (node, node_parameters, ros_conversions) imports rclpy or messages."""
+ROS layer (node, node_parameters, parameter_handling, node_process, ros_conversions)
+imports rclpy or messages."""
 import ast
 import pathlib
 import sys
@@ -8,7 +9,7 @@ import sys
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent / 'tensegrity_ros'
-ROS_LAYER = {'node', 'node_parameters', 'ros_conversions'}
+ROS_LAYER = {'node', 'node_parameters', 'parameter_handling', 'node_process', 'ros_conversions'}
 
 
 def _modules():

@@ -1,4 +1,4 @@
-"""The model of one module (DESIGN.md section 1) against finite differences and physics.
+"""The model of one module (docs/model.md section 1) against finite differences and physics.
 
 Every analytic derivative in ``module.py`` is checked against central finite
 differences of :func:`energy` (or of the derivative below it), and the energy
@@ -72,7 +72,7 @@ def test_hessian_matches_finite_differences(p, theta):
 
 @pytest.mark.parametrize('p, theta', cases(20, 3))
 def test_design_md_formulas(p, theta):
-    """The closed forms printed in DESIGN.md section 1, transcribed independently."""
+    """The closed forms printed in docs/model.md section 1, transcribed independently."""
     t1, t2 = theta
     f3y, f4y = p.f3y_total, p.f4y_total
     g1 = p.L1 * ((p.ka + p.kc) * p.rho * math.sin(t1) - p.kc * p.L2 * math.sin(t1 + t2)

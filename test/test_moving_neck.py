@@ -142,7 +142,7 @@ def test_bad_targets_are_refused_and_change_nothing():
 
 
 def test_heavy_damping_lands_where_the_quasi_static_neck_lands():
-    """The overdamped limit (DESIGN.md section 9) for the neck, through the simulator:
+    """The overdamped limit (docs/model.md section 5) for the neck, through the simulator:
     damping 0.05 N m s/rad leaves no overshoot, yet the snap still passes 1 rad/s (much
     heavier damping creeps through the fold below the onset speed: no snap to report)."""
     limits = [ModuleLimits(0.05, 0.15, max_rho_rate=0.05)] * 3

@@ -11,11 +11,11 @@ import math
 import os
 from pathlib import Path
 
-import pytest
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Vector3
+import pytest
 from rcl_interfaces.msg import Log, ParameterType
+import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -44,13 +44,6 @@ STREAM_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
 
 _namespaces = itertools.count()
-
-
-@pytest.fixture(scope='module')
-def ros():
-    rclpy.init()
-    yield
-    rclpy.try_shutdown()
 
 
 def values(status):
@@ -92,16 +85,23 @@ class Harness:
         self.joint_states, self.stable, self.equilibrium, self.jumps = [], [], [], []
         self.diagnostics, self.markers = [], []
         c.create_subscription(JointState, 'joint_states', self.joint_states.append, STREAM_QOS)
-        c.create_subscription(Bool, 'stable', self.stable.append, LATCHED_QOS)
-        c.create_subscription(DiagnosticStatus, 'equilibrium', self.equilibrium.append,
+        # the node's own outputs and service are private: <ns>/tensegrity/<name>
+        c.create_subscription(Bool, self.private('stable'), self.stable.append, LATCHED_QOS)
+        c.create_subscription(DiagnosticStatus, self.private('equilibrium'),
+                              self.equilibrium.append, LATCHED_QOS)
+        c.create_subscription(DiagnosticStatus, self.private('jumps'), self.jumps.append,
                               LATCHED_QOS)
-        c.create_subscription(DiagnosticStatus, 'jumps', self.jumps.append, LATCHED_QOS)
         c.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics, STREAM_QOS)
-        c.create_subscription(MarkerArray, 'markers', self.markers.append, LATCHED_QOS)
+        c.create_subscription(MarkerArray, self.private('markers'), self.markers.append,
+                              LATCHED_QOS)
         self.log = []
         c.create_subscription(Log, '/rosout', self._on_log, STREAM_QOS)
-        self.reset_client = c.create_client(Trigger, 'reset')
+        self.reset_client = c.create_client(Trigger, self.private('reset'))
         self.params = AsyncParameterClient(c, f'{self.ns}/tensegrity')
+
+    def private(self, name):
+        """The full name of the node's private topic or service ``name`` (``~/name``)."""
+        return f'{self.ns}/tensegrity/{name}'
 
     def add(self, node):
         self.nodes.append(node)
@@ -195,20 +195,6 @@ class Harness:
     def call(self, future, what):
         self.spin_until(future.done, what=what)
         return future.result()
-
-
-@pytest.fixture
-def harness(ros):
-    made = []
-
-    def make(*args, **kwargs):
-        h = Harness(*args, **kwargs)
-        made.append(h)
-        return h
-
-    yield make
-    for h in reversed(made):
-        h.close()
 
 
 # ---------------------------------------------------------------------------
@@ -701,10 +687,20 @@ def test_reset_returns_to_the_initial_state(harness):
     response = h.call(h.reset_client.call_async(Trigger.Request()), 'reset')
     assert response.success, response.message
     assert 'm0' in response.message
-    h.spin_until(lambda: h.state() == initial, what='initial joint_states')
+    # the actuator and the branch are reset; the loads are the live ones (the force
+    # parameters read them back): fig. 8a's lower branch under f3y = 1
     v = h.wait_status(lambda v: v['jumps_total'] == '0')
-    assert float(v['f3y']) == 5.0 and float(v['rho']) == 0.5
+    assert float(v['f3y']) == 1.0 and float(v['f4y']) == 5.0 and float(v['rho']) == 0.5
     assert float(v['theta1']) < 0
+    expected = settle(ModuleParams.paper(0.5, F3=1.0, F4=5.0), [-1.0, -1.0])
+    h.spin_until(lambda: h.state()[1:3] == pytest.approx(tuple(expected.theta), abs=1e-9),
+                 what='the reset state under the live loads')
+    # the loads back as they were: the very initial state
+    h.force_pubs['a3'].publish(Vector3(x=0.0, y=5.0, z=0.0))
+    h.wait_status(lambda v: float(v['f3y']) == 5.0)
+    response = h.call(h.reset_client.call_async(Trigger.Request()), 'reset')
+    assert response.success, response.message
+    h.spin_until(lambda: h.state() == initial, what='initial joint_states')
 
 
 def test_speed_limit_splits_a_command_into_segments(harness):
@@ -713,7 +709,7 @@ def test_speed_limit_splits_a_command_into_segments(harness):
     n = len(h.joint_states)
     h.rho_pub.publish(Float64(data=0.95))
     h.spin_until(lambda: h.joint_states[-1].position[0] == 0.95, what='rho reaches 0.95')
-    moving = [m for m in h.joint_states[n:]]
+    moving = list(h.joint_states[n:])
     rhos = [m.position[0] for m in moving]
     assert rhos == sorted(rhos)                                # monotone
     intermediate = [r for r in rhos if 0.75 < r < 0.95]
@@ -770,15 +766,16 @@ def test_qos_contract(harness):
                 if i.node_name == node.get_name()]
         return info[0].qos_profile
 
-    for topic in ('stable', 'equilibrium'):
-        q = pub_qos(f'{ns}/{topic}')
+    for topic in ('stable', 'equilibrium', 'motion', 'head_pose', 'markers'):
+        q = pub_qos(h.private(topic))
         assert q.durability == DurabilityPolicy.TRANSIENT_LOCAL
         assert q.reliability == ReliabilityPolicy.RELIABLE
     assert node_module.STATUS_QOS.depth == 1 and node_module.COMMAND_QOS.depth >= 10
-    assert pub_qos(f'{ns}/jumps').durability == DurabilityPolicy.TRANSIENT_LOCAL
+    assert pub_qos(h.private('jumps')).durability == DurabilityPolicy.TRANSIENT_LOCAL
     assert pub_qos(f'{ns}/joint_states').durability == DurabilityPolicy.VOLATILE
     assert node.get_publishers_info_by_topic('/diagnostics')
-    for topic in ('m0/rho_cmd', 'm0/force_a3', 'm0/force_a4', 'joint_commands'):
+    for topic in ('m0/rho_cmd', 'm0/force_a3', 'm0/force_a4', 'joint_commands',
+                  'joint_trajectory'):
         q = sub_qos(f'{ns}/{topic}')
         assert q.reliability == ReliabilityPolicy.RELIABLE
         assert q.durability == DurabilityPolicy.VOLATILE

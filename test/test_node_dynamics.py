@@ -5,14 +5,13 @@ claims nothing while the rods move; bad configurations are refused with a reason
 Spun until a condition holds (no sleeps)."""
 import math
 
-import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
+import pytest
 from rclpy.parameter import Parameter
 
 from tensegrity_ros.core import ModuleParams, simulate_snap
 from tensegrity_ros.node import ConfigurationError, TensegrityNode
-
-from test_node import harness, ros, values  # noqa: F401  (fixtures)
+from test_node import values
 
 pytestmark = pytest.mark.ros
 
@@ -122,9 +121,9 @@ def test_a_neck_snaps_through_a_fold_and_reports_the_figures_at_rest(harness):
     fold (rho 0.1127); the jump comes when the neck rests, with the figures of the core's
     offline transient of the same profile, every module's on the way."""
     from std_msgs.msg import Float64
+    from test_moving_neck import ACROSS_THE_FOLD, BIRD, UPRIGHT
 
     from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
-    from test_moving_neck import ACROSS_THE_FOLD, BIRD, UPRIGHT
     from test_node_neck import MODULES, Neck
 
     extra = {'dynamics': True}
@@ -159,7 +158,7 @@ def test_a_neck_snaps_through_a_fold_and_reports_the_figures_at_rest(harness):
     positions, efforts = neck.joints()
     assert positions['m2_rho'] == ACROSS_THE_FOLD[2]
     # at rest the efforts are the verified state's static actuator forces
-    from tensegrity_ros.core.stack import Stack, settle_stack
+    from tensegrity_ros.core.stack import settle_stack, Stack
     rest = settle_stack(Stack(tuple(p.with_(rho=r) for p, r in zip(BIRD.modules,
                                                                    ACROSS_THE_FOLD))),
                         ref['final']['theta'])

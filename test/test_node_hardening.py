@@ -12,17 +12,15 @@ import sys
 import threading
 import time
 
-import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Vector3
+import pytest
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
-from tensegrity_ros.core import ModuleParams, equilibria, settle, track_module
-
-from test_node import harness, ros  # noqa: F401  (fixtures)
+from tensegrity_ros.core import equilibria, ModuleParams, settle, track_module
 from test_node import LATCHED_QOS, ROOT, STREAM_QOS, TIMEOUT
 
 pytestmark = pytest.mark.ros
@@ -249,7 +247,8 @@ def test_burst_of_fold_crossing_commands_is_processed_or_counted(harness):
     # a queue for every jump: the client takes one message per executor cycle, while a
     # node callback working off a backlog can publish several (the harness keeps 10)
     jumps = []
-    h.client.create_subscription(DiagnosticStatus, 'jumps', jumps.append, DEEP_LATCHED_QOS)
+    h.client.create_subscription(DiagnosticStatus, h.private('jumps'), jumps.append,
+                                 DEEP_LATCHED_QOS)
     h.spin_until(lambda: pub.get_subscription_count() > 0 and
                  h.counter('commands_processed') is not None, what='discovery')
 

@@ -5,10 +5,10 @@ holds; no sleeps).  The expected jumps are computed with the core (track_stack) 
 """
 import math
 
-import numpy as np
-import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, Vector3
+import numpy as np
+import pytest
 from rcl_interfaces.msg import Log
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -17,7 +17,6 @@ from std_srvs.srv import Trigger
 
 from tensegrity_ros import node as node_module
 from tensegrity_ros.core.stack import settle_stack, track_stack
-from test_node import harness, ros  # noqa: F401  (fixtures)
 from test_node import LATCHED_QOS, PUB_QOS, ROOT, STREAM_QOS, values
 
 pytestmark = pytest.mark.ros
@@ -38,7 +37,8 @@ class Neck:
         self.force_pubs = {(m, w): c.create_publisher(Vector3, f'{m}/force_{w}', PUB_QOS)
                            for m in MODULES for w in ('a3', 'a4')}
         self.head = []
-        c.create_subscription(PoseStamped, 'head_pose', self.head.append, LATCHED_QOS)
+        c.create_subscription(PoseStamped, h.private('head_pose'), self.head.append,
+                              LATCHED_QOS)
         h.ready()
         pubs = [*self.rho_pubs.values(), *self.force_pubs.values()]
         h.spin_until(lambda: all(p.get_subscription_count() > 0 for p in pubs) and self.head,
@@ -70,11 +70,6 @@ class Neck:
             v = values(st)
             last[v['module']] = v
         return last
-
-
-@pytest.fixture
-def neck(harness):
-    return lambda **kwargs: Neck(harness, **kwargs)
 
 
 def _angles(v, side):
@@ -210,8 +205,10 @@ def test_a_sideways_buckling_under_a_heavy_head_publishes_no_jump(neck):
                  and all(v['jumps_total'] == '0' for v in n.statuses().values()),
                  what='statuses after the buckling')
     assert not h.jumps and h.node.counters['jumps_total'] == 0
+
     # said once on /rosout at INFO, with where it happened, and not as a warning
-    said = lambda: [m for m in h.log if 'passed a branch point continuously' in m.msg]  # noqa: E731
+    def said():
+        return [m for m in h.log if 'passed a branch point continuously' in m.msg]
     h.spin_until(said, what='the INFO line of the continuous buckling')
     [line] = said()
     rho = expected.passages[0].stack.modules[1].rho

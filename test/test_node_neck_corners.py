@@ -7,18 +7,17 @@ node must do is computed with the core (track_stack) first.
 """
 import dataclasses
 
+from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
 import pytest
-from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from tensegrity_ros.core import TrackingError
-from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
-from test_node import harness, ros  # noqa: F401  (fixtures)
+from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
 from test_node import values
-from test_node_neck import MODULES, neck  # noqa: F401  (fixture)
+from test_node_neck import MODULES
 
 pytestmark = pytest.mark.ros
 

@@ -7,11 +7,11 @@ inherits this session's loopback-only discovery and ROS_DOMAIN_ID (test/conftest
 """
 import contextlib
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 import rclpy
@@ -83,7 +83,7 @@ def test_signal_exits_cleanly(client, executor_kind, sig):
     states, stable = [], []
     node.create_subscription(JointState, f'{namespace}/joint_states', states.append, 10)
     node.create_subscription(
-        Bool, f'{namespace}/stable', stable.append,
+        Bool, f'{namespace}/tensegrity/stable', stable.append,
         QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                    durability=DurabilityPolicy.TRANSIENT_LOCAL))
     proc = start_node(namespace, executor=executor_kind)
@@ -129,7 +129,7 @@ def test_process_serves_topics_services_and_parameters(client, executor_kind):
     states = []
     node.create_subscription(JointState, f'{namespace}/joint_states', states.append, 100)
     pub = node.create_publisher(Float64, f'{namespace}/m0/rho_cmd', 10)
-    reset = node.create_client(Trigger, f'{namespace}/reset')
+    reset = node.create_client(Trigger, f'{namespace}/tensegrity/reset')
     params = AsyncParameterClient(node, f'{namespace}/tensegrity')
     proc = start_node(namespace, executor=executor_kind)
     with reaped(proc):

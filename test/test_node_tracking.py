@@ -1,12 +1,12 @@
 """Node: no false jumps (issue 12) and loads beyond the supported range (issue 10 item 2)."""
-import pytest
 from geometry_msgs.msg import Vector3
+import pytest
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from tensegrity_ros.core import ModuleParams, settle, track_module
-from test_node import fig8a_overrides, harness, ros, values  # noqa: F401  (fixtures)
+from test_node import fig8a_overrides, values
 
 
 def test_unloaded_module_to_rho_beyond_L_publishes_no_jump(harness):

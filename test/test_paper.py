@@ -1,4 +1,4 @@
-"""Every statement of DESIGN.md section 2 (what the paper states), as a test.
+"""Every statement of docs/model.md section 2 (what the paper states), as a test.
 
 Paper: Wenger & Chablat, "Kinetostatic analysis and solution classification of a
 class of planar tensegrity mechanisms" (seeds/000_32577c4bb2d10654.txt).  The

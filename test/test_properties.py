@@ -1,4 +1,4 @@
-"""Invariants of the equilibrium set (DESIGN.md section 2, "worth testing on every
+"""Invariants of the equilibrium set (docs/model.md section 2, "worth testing on every
 code path"), as hypothesis properties.
 
 Derandomized (a fixed sequence of examples), no deadline.  Where a property needs

@@ -152,7 +152,7 @@ def test_whatever_the_commands_no_moving_state_is_claimed_stable_and_it_ends_at_
 
 
 def test_heavy_damping_lands_where_the_quasi_static_simulator_lands():
-    """The overdamped limit (DESIGN.md section 9): same jump, same landing as the tracker."""
+    """The overdamped limit (docs/model.md section 5): same jump, same landing as the tracker."""
     sim = make(damping=5.0)
     sim.command_rho(0, 0.9, 0)
     [jump], _ = run(sim, 0, 60 * 10**9)

@@ -1,13 +1,13 @@
 """A tolerance study against references that share no code with it (issue 34):
 
-* the unloaded module, whose operating range is known in closed form (DESIGN.md section
+* the unloaded module, whose operating range is known in closed form (docs/model.md section
   2 item 2, the paper's fig. 3: two stable non-flat equilibria iff |L1 - L2| < 2 rho <
   L1 + L2), with L2 normal: every sample's range and the quantiles are exact;
 * a sample replayed alone by the command line (its replay command, as the report prints
   it): ``tensegrity range`` / ``tensegrity track`` give the sample's figures;
 * the jump probability of a path ending next to C1 (fig. 8a/8b) against a direct loop
   over the same samples: a fixed-step continuation written here, on the energy's
-  gradient and Hessian written here from DESIGN.md section 1.
+  gradient and Hessian written here from docs/model.md section 1.
 """
 import contextlib
 import io
@@ -125,7 +125,7 @@ def test_worst_neck_sample_replayed_from_its_parameter_file(tmp_path):
 
 def gradient_hessian(p, t1, t2):
     """dU/dtheta and d2U/dtheta2 of U = ka/2 |A3 - A2|^2 + kb/2 |A4 - A1|^2 + kc/2 |A4 - A3|^2
-    - F3 y3 - F4 y4 (DESIGN.md section 1, springs and vertical loads only), by hand."""
+    - F3 y3 - F4 y4 (docs/model.md section 1, springs and vertical loads only), by hand."""
     rho, L1, L2, k, F3, F4 = p
     x3, y3 = L1 * np.cos(t1), L1 * np.sin(t1)
     x4, y4 = rho - L2 * np.cos(t2), L2 * np.sin(t2)

@@ -35,7 +35,7 @@ exact symmetry.  It is *singular* along curves of symmetry-breaking pitchforks,
 which only exist when a symmetry holds on the whole parameter plane: there the
 equilibrium set itself self-intersects (``[H | G_x G_y]`` has rank 1), Newton
 converges linearly and continuation stalls.  Three symmetries of the model
-occur (DESIGN.md section 2):
+occur (docs/model.md section 2):
 
 ``'swap'``        (t1, t2) -> (t2, t1); needs L1 = L2, ka = kb, F3 = F4, f3x = -f4x.
                   Fixed set t1 = t2; breaking mode (1, -1).  Curve: eq. (15).

@@ -1,4 +1,4 @@
-"""The simulator in dynamics mode (DESIGN.md section 9): the rods move in real time.
+"""The simulator in dynamics mode (docs/model.md section 5): the rods move in real time.
 
 :class:`DynamicSimulator` has the :class:`~.simulator.Simulator` interface, but a
 command does not jump the state to the end of a tracked path: the actuators run at
@@ -189,6 +189,11 @@ class DynamicSimulator(Simulator):
         return LiveState(_per_module(m.rho)[index], _per_module(m.rho_dot)[index],
                          float(theta[0]), float(theta[1]), float(rate[0]), float(rate[1]),
                          float(m.actuator_forces[index]))
+
+    def design(self, index):
+        """The design and loads of the moving rods now (the latest change, deferred ones
+        included: they act on the rods at once)."""
+        return self._latest_modules()[index]
 
     def module_nodes(self, index):
         """A1..A4 (4, 2) now: of the moving rods, or of the verified rest state."""

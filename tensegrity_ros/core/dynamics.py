@@ -1,4 +1,4 @@
-"""Snap-through dynamics of one module (DESIGN.md section 9).
+"""Snap-through dynamics of one module (docs/model.md section 5).
 
 The quasi-static tracker says where the mechanism lands after a jump; this says
 what happens on the way.  Each rod is a uniform slender bar of mass ``m_i``

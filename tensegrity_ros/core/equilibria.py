@@ -1,4 +1,4 @@
-"""Every equilibrium of one module, exactly (DESIGN.md section 3): the entry points.
+"""Every equilibrium of one module, exactly (docs/model.md section 3): the entry points.
 
 The work is split by concept: :mod:`.polynomial_solver` (elimination to a degree-6
 polynomial, polishing, degenerate cases), :mod:`.batch_solver` (the vectorised form

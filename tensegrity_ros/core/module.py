@@ -1,4 +1,4 @@
-"""One tensegrity module (DESIGN.md section 1): parameters, energy and its derivatives.
+"""One tensegrity module (docs/model.md section 1): parameters, energy and its derivatives.
 
 Coordinates are the rod angles ``theta = (t1, t2)``.  Base frame: origin at A1,
 x along A1->A2, y up.  All quantities are SI (m, N, N/m, rad).  The paper's

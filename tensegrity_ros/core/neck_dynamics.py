@@ -1,4 +1,4 @@
-"""Snap-through dynamics of the neck stack (DESIGN.md sections 4 and 9), same contract as
+"""Snap-through dynamics of the neck stack (docs/model.md sections 4 and 5), same contract as
 :mod:`.dynamics` for one module.
 
 Coordinates are the positions of the moving nodes (A3, A4 of every module, in the

@@ -1,4 +1,4 @@
-"""Exact enumeration of all equilibria of one module (DESIGN.md section 3).
+"""Exact enumeration of all equilibria of one module (docs/model.md section 3).
 
 Elimination.  Divide the equilibrium equations by L1, L2 and write
 ``a1 = (ka+kc) rho + f3x``, ``b1 = f3y``, ``a2 = (kb+kc) rho - f4x``, ``b2 = f4y``

@@ -210,9 +210,9 @@ class Simulator:
         return self._motion is not None or self._queued is not None
 
     def goal(self, index):
-        """The ModuleParams module ``index`` is heading to: the end of the pending paths,
-        else the live ones."""
+        """The ModuleParams module ``index`` is heading to (the pending paths' end, else live)."""
         return self._goals()[index]
+    design = goal       # the design and loads in effect now (DynamicSimulator: the rods')
 
     def module_nodes(self, index):
         """A1..A4 of a module, (4, 2), in the base frame of the bottom module."""

@@ -1,4 +1,4 @@
-"""The neck stack: N modules with coupled statics (DESIGN.md section 4), tracked.
+"""The neck stack: N modules with coupled statics (docs/model.md section 4), tracked.
 
 The model is :mod:`.stack_model` (parameters, node graph, evaluation) and
 :class:`.stack_path.StackPath` (a path of stacks as the tracker's problem); here are the

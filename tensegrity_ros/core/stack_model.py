@@ -1,6 +1,6 @@
 """The neck stack's model: its parameters, node graph and one evaluation per (state, s).
 
-DESIGN.md section 4.
+docs/model.md section 4.
 
 Module i+1 sits on module i's top chord: A1(i+1) = A4(i), A2(i+1) = A3(i), and
 module i+1's telescopic rod is that chord, |A3(i) - A4(i)| = rho(i+1).  Module

@@ -1,4 +1,5 @@
-"""Follow a stable equilibrium along a parameter path, with jump detection (DESIGN.md section 3).
+"""Follow a stable equilibrium along a parameter path, with jump detection (docs/model.md,
+section 3).
 
 The tracker knows nothing about tensegrity: it works on a :class:`PathProblem`, a
 family of equilibrium equations ``F(y, s) = 0`` along a path ``s in [0, 1]`` with an

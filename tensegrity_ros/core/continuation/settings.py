@@ -15,8 +15,9 @@ from ..tolerances import DEFINITENESS_TOL
 #: false jumps).  Not everywhere: it made the N = 3 neck's command up to 1e-10 before its
 #: branch point list a false passage 7e-8 early.
 PITCHFORK_CONTRACTION = 0.75
-#: A critical point is located to this in s (DESIGN.md): a command that ends closer than
-#: this past one ends at the critical point itself (see :func:`.lander.at_the_critical_point`).
+#: A critical point is located to this in s (docs/model.md section 3): a command that ends
+#: closer than this past one ends at the critical point itself (see
+#: :func:`.lander.at_the_critical_point`).
 LOCATION_TOL = 1e-9
 #: A command ending closer than this in s past a supercritical branch point ends at the
 #: branch point itself: a buckled state that close is not told from it (the normal form's

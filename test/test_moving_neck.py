@@ -330,3 +330,28 @@ def test_sampled_at_50_hz_a_neck_snap_shows_its_peak_speed_to_ten_percent():
     [jump] = jumps
     assert jump.dynamics['peak_speed'] == pytest.approx(7.73, abs=0.01)
     assert max(sampled) >= 0.9 * jump.dynamics['peak_speed']
+
+
+def test_a_neck_command_given_on_the_way_to_a_fold_warns_as_the_quasi_static_mode():
+    """V1 (issue 31, 3): config/neck.yaml, every max_rho_rate 0.05 m/s; m2's actuator to
+    0.10 (no fold), then, 0.2 s on the way, to 0.12 (the fold at 0.1127 is ~0.45 s ahead).
+    The quasi-static simulator warns of the fold (JumpAhead); fails at f8d033b: the
+    dynamics mode warns only of commands given at rest, and the rods snap unannounced."""
+    from tensegrity_ros.core.events import JumpAhead
+    found = {}
+    limits = [ModuleLimits(0.05, 0.15, max_rho_rate=0.05)] * 3
+    for name, sim in (('quasi-static', Simulator(BIRD.modules, UPRIGHT, limits)),
+                      ('dynamics', _bird_simulator())):
+        warnings = list(sim.command_rho(2, 0.10, 0).of_type(JumpAhead))
+        now = 0
+        while now < 200_000_000:
+            now += 20_000_000
+            warnings += sim.advance(now).of_type(JumpAhead)
+        assert not warnings
+        warnings = list(sim.command_rho(2, 0.12, now).of_type(JumpAhead))
+        while not warnings and now < 600_000_000:       # before the actuator reaches 0.1127
+            now += 20_000_000
+            warnings += sim.advance(now).of_type(JumpAhead)
+        found[name] = [(w.module, w.end.kind, round(w.end.rho, 6)) for w in warnings]
+    assert found['quasi-static'] == [(2, 'fold', 0.112693)]
+    assert found['dynamics'] == found['quasi-static']

@@ -323,3 +323,53 @@ def test_a_module_command_beyond_its_fold_warns_at_once():
                                                               LOWER).static_fold_rho)
     run(sim, 0, 10**9)
     assert not sim.command_rho(0, 0.95, 10**9).of_type(JumpAhead)
+
+
+# ---------------------------------------------------------------------------
+# V1 acceptance (issues 31, 35): the snap past C1 comes to rest whatever the tick phase;
+# a command given on the way warns as in the quasi-static mode
+
+@pytest.mark.parametrize('phase_ms', [0, 1, 7, 10, 13])
+def test_the_snap_past_c1_is_reported_whatever_the_phase_of_the_command(phase_ms):
+    """V1 (issue 35, 2; issue 31, the node never silent): the README's fig. 8a walk-through
+    in the dynamics mode (50 g rods, 0.1 m/s, damping 0.01, 20 ms ticks) with the command
+    arriving between two ticks, as a real node's commands do.  The rods snap at ~5.45 s and
+    rest on the upper branch within ~65 s (the one-shot simulation settles 59.57 s after
+    the onset), so the jump must be reported by 120 s.  Fails at f8d033b for phases 1 and
+    7 ms: the rest candidate is taken (once per held segment) while the rods creep on the
+    unstable branch, and rod 2 then swings through -pi: its continuous angle ends 2 pi away
+    from the candidate's, the energy 'above the rest' never falls below the threshold, the
+    simulator stays 'moving' for ever (no jump, stable false, equilibrium 'in motion'),
+    though the rods rest (|theta'| ~ 1e-10 rad/s).  Seen live twice with the real ros2 CLI:
+    no jump 150 s after `ros2 topic pub --once /m0/rho_cmd ... 0.1`."""
+    sim = make(damping=0.01)
+    tick = 20_000_000
+    sim.advance(tick)
+    assert sim.command_rho(0, 0.1, tick + phase_ms * 1_000_000).accepted
+    jumps, now = [], tick
+    while not jumps and now < 120 * 10**9:
+        now += tick
+        jumps += sim.advance(now).of_type(Jump)
+    assert jumps, (f'no jump reported in 120 s; moving={sim.moving}, live={sim.live(0)}')
+    [jump] = jumps
+    assert jump.kind == 'branch_point' and jump.to_theta[0][0] > 1.0
+    assert not sim.moving and sim.stable
+
+
+def test_a_module_command_given_on_the_way_to_a_fold_warns_as_the_quasi_static_mode():
+    """V1 (issue 31, 3: early warning 'by the same rule as the quasi-static mode'): the
+    actuator runs 0.5 -> 0.7 (no fold ahead); 0.5 s later, on the way, the target becomes
+    0.9, beyond the fold at 0.8786 (reached ~3.8 s later).  The quasi-static simulator
+    warns of it at once (JumpAhead); 8db3247's dynamics mode did too.  Fails at f8d033b:
+    the dynamics mode warns only of commands given at rest (its own test asserts the
+    opposite: test_a_module_command_beyond_its_fold_warns_at_once), so the jump comes
+    unannounced."""
+    found = {}
+    for name, sim in (('quasi-static', Simulator([FIG8A], [LOWER], [LIMITS])),
+                      ('dynamics', make())):
+        sim.command_rho(0, 0.7, 0)
+        run(sim, 0, 500_000_000)
+        found[name] = [(w.end.kind, round(w.end.rho, 6))
+                       for w in sim.command_rho(0, 0.9, 500_000_000).of_type(JumpAhead)]
+    assert found['quasi-static'] == [('fold', round(0.8785791152895454, 6))]
+    assert found['dynamics'] == found['quasi-static']

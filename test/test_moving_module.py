@@ -94,3 +94,39 @@ def test_any_command_sequence_ends_at_rest_on_a_stable_equilibrium_of_the_last_t
     assert rest.stable
     assert np.max(np.abs(live.theta - rest.theta)) < 1e-6
     assert np.max(np.abs(live.theta_dot)) < 1e-6
+
+
+def test_a_rest_candidate_found_by_an_unstable_equilibrium_is_found_again_where_the_rods_rest(
+        monkeypatch):
+    """Issue 35, 2 (V1): the rest equilibrium a held segment's motion is checked against is
+    found from the first slow state.  Fig. 8a driven past C1 (to 0.1 at 0.1 m/s, c = 0.01)
+    creeps by the unstable symmetric equilibrium before it snaps; a candidate found from
+    a slow state need not be where the rods come to rest.  Here the first candidate is
+    that unstable equilibrium (as a search that stops by it would find).  Fails before:
+    the energy above it never falls below the threshold, the module is moving for ever
+    and the snap never reported.  Now the candidate is found again where slow rods are
+    near neither it nor where it was found, and the report comes when they rest on the
+    upper branch (the only stable equilibrium at 0.1: (1.47297, 1.47297))."""
+    from tensegrity_ros.core import dynamics
+    from tensegrity_ros.core.transient import Rest
+    real = dynamics.ModuleEquations.rest_candidate
+    unstable = np.array([-1.4681677, -1.4681677])    # fig. 8a at rho = 0.1, saddle
+    given = []
+
+    def first_by_the_unstable_equilibrium(self, y, known=None):
+        rest = real(self, y, known)
+        if rest is None or given:
+            return rest
+        given.append(y.copy())
+        return Rest(theta=unstable, excess=self.excess_energy(unstable),
+                    threshold=rest.threshold)
+
+    monkeypatch.setattr(dynamics.ModuleEquations, 'rest_candidate',
+                        first_by_the_unstable_equilibrium)
+    live = MovingModule(FIG8A, LOWER, damping=0.01, max_rate=0.1)
+    live.command(0.1, 0.0)
+    reports = drive(live, 120.0)
+    assert given                                    # the wrong candidate was in place
+    assert len(reports) == 1 and not live.moving
+    assert reports[0]['peak_speed'] == pytest.approx(33.48, abs=0.01)
+    assert np.allclose(live.theta, [1.47297349, 1.47297349], atol=1e-6)

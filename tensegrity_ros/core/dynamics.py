@@ -29,8 +29,9 @@ from . import module as _m
 from . import transient
 from .module import InvalidParameterError, ModuleParams
 from .tracking import ModulePath, ModuleTrack, settle, track_module
-from .transient import (MAX_HOLD, ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, Rest, RhoRamp,
-                        SnapHistory, SolverSettings, imperfection_torque, wrap as _wrap)
+from .transient import (MAX_HOLD, NEAR, ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, SLOW, Rest,
+                        RhoRamp, SnapHistory, SolverSettings, imperfection_torque,
+                        wrap as _wrap)
 
 
 @dataclass(frozen=True)
@@ -154,24 +155,29 @@ class ModuleEquations:
 
         return [rod1, rod2]
 
+    def slow_angles(self, t, y):
+        """The angles of state ``y`` if both rods are slower than SLOW, else None."""
+        return None if np.max(np.abs(y[2:])) > SLOW else np.asarray(y[:2], dtype=float)
+
     def rest_candidate(self, y, known=None):
         """The :class:`~.transient.Rest` of the equilibrium a slow state (|theta'| below
-        1e-3 rad/s) is settling to, or None (fast, undamped, or no equilibrium found).
-        ``known``: a verified equilibrium at rho1 taken if the state is within 1e-3 rad of
+        SLOW) is settling to, or None (fast, undamped, or no equilibrium found).
+        ``known``: a verified equilibrium at rho1 taken if the state is within NEAR of
         it (the quasi-static prediction: no second settle)."""
-        if self.damping == 0.0 or np.max(np.abs(y[2:])) > 1e-3:
+        angles = self.slow_angles(None, y)
+        if self.damping == 0.0 or angles is None:
             return None
         eq = known
-        if eq is None or np.max(np.abs(_wrap(y[:2] - np.ravel(eq.theta)))) > 1e-3:
+        if eq is None or np.max(np.abs(_wrap(angles - np.ravel(eq.theta)))) > NEAR:
             try:
-                eq = settle(self.end, y[:2])
+                eq = settle(self.end, angles)
             except (RuntimeError, ValueError):
                 return None
-        theta_eq = eq.theta + 2.0 * math.pi * np.round((y[:2] - eq.theta) / (2.0 * math.pi))
+        theta_eq = eq.theta + 2.0 * math.pi * np.round((angles - eq.theta) / (2.0 * math.pi))
         return Rest(theta=theta_eq, excess=self.excess_energy(theta_eq),
                     threshold=0.5 * min(float(np.min(eq.eigenvalues)),
                                         float(np.min(self.inertia))) * SETTLE_TOLERANCE ** 2,
-                    eq=eq)
+                    eq=eq, found_at=angles.copy())
 
     def settled(self, y):
         """The :class:`~.transient.Rest` if the state is trapped within SETTLE_TOLERANCE for
@@ -188,11 +194,13 @@ class ModuleEquations:
     def excess_energy(self, theta_eq):
         """Energy (J) above the minimum ``theta_eq`` at rho1 of states (n, 4): kinetic plus
         the quadratic potential about it (exact to third order in the distance, and free
-        of the cancellation of two large potentials)."""
+        of the cancellation of two large potentials), on the angles' differences modulo
+        2 pi (the potential is periodic in each angle: a rod at rest a whole turn from
+        ``theta_eq`` is at rest there)."""
         h = _m.hessian(self.end, theta_eq)
 
         def excess(t, ys):
-            delta = ys[:, :2] - theta_eq
+            delta = _wrap(ys[:, :2] - theta_eq)
             potential = np.einsum('ni,ij,nj->n', delta, h, delta)
             return 0.5 * (ys[:, 2:] ** 2 @ self.inertia + potential)
         return excess

@@ -240,18 +240,23 @@ class LiveMotion:
 
     # -- rest and the report ---------------------------------------------------------------
     def _now_at_rest(self):
-        """True on the call at which the rods come to rest at the held target.  The rest
-        equilibrium of a held segment is found once (settling is the costly part) and
-        then only the energy above it is checked."""
+        """True on the call at which the rods come to rest at the held target.
+
+        The rest equilibrium is found from a slow state (settling is the costly part) and
+        then only the energy above it is checked, modulo 2 pi.  It is found again where
+        slow rods are near neither it nor the state it was found from: taken while they
+        crept on an unstable branch, it need not be where they come to rest."""
         if self._at_rest or self.rho != self.target:
             return False
-        if self._rest is None:
-            self._rest = self._system.rest_candidate(self.y, known=self.rest_hint)
-            if self._rest is None:
+        t_local = self.t - self._t0
+        rest = self._rest
+        if rest is None or (not transient.trapped(rest, self.y) and
+                            rest.elsewhere(self._system.slow_angles(t_local, self.y))):
+            rest = self._system.rest_candidate(self.y, known=self.rest_hint) or rest
+            self._rest = rest
+            if rest is None:
                 return False
-        t_local = np.array([self.t - self._t0])
-        self._at_rest = bool(self._rest.excess(t_local, self.y[None, :])[0]
-                             < self._rest.threshold)
+        self._at_rest = transient.trapped(rest, self.y) is not None
         return self._at_rest
 
     def _rest_report(self):

@@ -30,7 +30,7 @@ from . import neck_kernel as _kernel
 from . import transient
 from .module import InvalidParameterError
 from .stack import Stack, StackTrack, settle_stack, track_stack
-from .transient import (ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, Rest, RhoRamp,
+from .transient import (NEAR, ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, SLOW, Rest, RhoRamp,
                         SnapHistory, SolverSettings, imperfection_torque, wrap)
 
 #: Baumgarte stabilisation rate (1/s) of the length constraints.
@@ -398,19 +398,24 @@ class NeckEquations:
         mu = eigh(basis.T @ self.mass @ basis, metric, eigvals_only=True)[0]
         return 0.5 * SETTLE_TOLERANCE ** 2 * min(h, mu)
 
+    def slow_angles(self, t, y):
+        """The local angles (N*2) of state ``y`` at segment time ``t`` if every local rate
+        is below SLOW, else None."""
+        angles, rates = self.rates(t, y)
+        return None if np.max(np.abs(rates)) > SLOW else np.array(angles, dtype=float)
+
     def rest_candidate(self, y, known=None):
         """The :class:`~.transient.Rest` of the equilibrium a slow state (local rates below
-        1e-3 rad/s, rho held) is settling to, or None (fast, undamped, none found).
-        ``known``: a verified equilibrium at rho1 taken if the state is within 1e-3 rad of
+        SLOW, rho held) is settling to, or None (fast, undamped, none found).
+        ``known``: a verified equilibrium at rho1 taken if the state is within NEAR of
         it (the quasi-static prediction: no second settle)."""
         if not np.any(self.damping > 0.0):
             return None
-        t_end = self.ramp.duration
-        angles, rates = self.rates(t_end, y)
-        if np.max(np.abs(rates)) > 1e-3:
+        angles = self.slow_angles(self.ramp.duration, y)
+        if angles is None:
             return None
         eq = known
-        if eq is None or np.max(np.abs(wrap(angles - np.ravel(eq.theta)))) > 1e-3:
+        if eq is None or np.max(np.abs(wrap(angles - np.ravel(eq.theta)))) > NEAR:
             end = Stack(tuple(m.with_(rho=r) for m, r in zip(self.modules, self.ramp.rho1)))
             try:
                 eq = settle_stack(end, angles.reshape(self.n, 2))
@@ -418,7 +423,8 @@ class NeckEquations:
                 return None
         stiffness = self.rest_stiffness(eq.nodes)
         return Rest(theta=eq.theta.ravel(), excess=self.excess_energy(eq.nodes, stiffness),
-                    threshold=self.rest_threshold(eq.nodes, stiffness), eq=eq)
+                    threshold=self.rest_threshold(eq.nodes, stiffness), eq=eq,
+                    found_at=angles)
 
     def settled(self, y):
         """The :class:`~.transient.Rest` if the damped energy above the nearby minimum is

@@ -8,12 +8,19 @@ settling time) are read from the dense output, peaks refined by a bounded scalar
 search and the settling time by a root bracket on the energy above the rest state.
 
 Angles are read continuously (unwrapped): a rod that swings through pi is not a jump of
-2 pi in any figure.  The settling time is the time after which the mechanical energy
-above the final minimum stays below the "settled" threshold: while rho is held and the
-pivots are damped that energy only falls, so the time is one crossing of a falling curve
-and moves with the integration error by about that error (the last exit from a box of
-1e-6 rad around the rest angles, used before, is decided by whether one swing of the
-slowest mode peaks just inside or just outside: half a period for 2e-9 rad).
+2 pi in any figure.  States are compared modulo 2 pi where the mechanism is periodic: the
+energy above a rest state (rest detection, the settling time) and landings.
+
+The settling time is the time after which the mechanical energy above the final minimum
+stays below the "settled" threshold (the least energy of a state outside the 1e-6 rad,
+1e-6 rad/s box about it).  While rho is held and the pivots are damped that energy only
+falls, so it is the first time the energy is below the threshold: one crossing of a
+falling curve, which moves with the integration error by about that error, and which a
+later bump of the computed energy (an integration error: the exact one cannot grow)
+cannot move.  The last exit from the box, used before, is decided by whether one swing
+of the slowest mode peaks just inside or just outside: half a period for 2e-9 rad.
+Precision (fig. 8a's fold and past C1, rtol 1e-8 to 1e-13, four OpenBLAS kernels): 1.5e-3
+s; docs/dynamics.md.
 
 A perfectly symmetric mechanism on its symmetric branch past a branch point is an
 unstable equilibrium that exact arithmetic never leaves (the equations keep
@@ -50,6 +57,10 @@ MAX_HOLD = 60.0
 SAME_LANDING = 1e-4
 #: Relative size of the built-in imperfection (see the module docstring).
 IMPERFECTION = 1e-13
+#: Rods slower than this (rad/s) may be at rest: a rest candidate is found from their state.
+SLOW = 1e-3
+#: Angles closer than this (rad, wrapped) are near the same equilibrium (rest candidates).
+NEAR = 1e-3
 
 
 def imperfection_torque(params):
@@ -62,13 +73,27 @@ class Rest:
     """Where a damped transient rests: the rest ``theta`` (rad, continuous with the
     state it was found from), ``excess(t, ys)`` the mechanical energy (J) above that
     minimum of states ``ys`` (shape (n, state size)) at segment times ``t`` while rho is
-    held, and ``threshold`` (J): below it the state is trapped within SETTLE_TOLERANCE
-    of ``theta`` for good; ``eq`` the verified equilibrium it was found as."""
+    held -- a function of the angles modulo 2 pi, as the mechanism is --, and
+    ``threshold`` (J): below it the state is trapped within SETTLE_TOLERANCE of ``theta``
+    (modulo 2 pi) for good; ``eq`` the verified equilibrium it was found as and
+    ``found_at`` the angles of the slow state it was found from."""
 
     theta: np.ndarray
     excess: object = field(repr=False)
     threshold: float
     eq: object = field(default=None, repr=False)
+    found_at: np.ndarray = field(default=None, repr=False)
+
+    def elsewhere(self, angles):
+        """True if slow rods at ``angles`` (None: not slow) are near neither this rest nor
+        the state it was found from: they rest, or creep, by another equilibrium, and the
+        candidate must be found again (rods that left an unstable equilibrium after the
+        candidate was taken may come to rest in any well, and a whole turn away)."""
+        if angles is None:
+            return False
+        far = [np.max(np.abs(wrap(np.ravel(angles) - np.ravel(ref)))) > NEAR
+               for ref in (self.theta, self.found_at) if ref is not None]
+        return all(far)
 
 
 @dataclass(frozen=True)
@@ -171,19 +196,32 @@ def checked_damping(damping):
     return float(damping)
 
 
-def _integrate(system, y0, t0, t1, settings):
+def _integrate(system, y0, t0, t1, settings, first_step=None):
     sol = solve_ivp(system.rhs, (t0, t1), y0, method=settings.method, rtol=settings.rtol,
-                    atol=settings.atol, dense_output=True, events=system.onset_events())
+                    atol=settings.atol, dense_output=True, events=system.onset_events(),
+                    first_step=None if first_step is None else min(first_step, t1 - t0))
     if sol.status < 0:
         raise RuntimeError(f'the ODE solver failed: {sol.message}')
     return sol
+
+
+def _step_size(sol):
+    """The last full step of a solution (its very last one ends at the bound: cut short)."""
+    steps = np.diff(sol.t)
+    return float(steps[-2] if len(steps) > 1 else steps[-1]) if len(steps) else None
 
 
 def run(system, y0, hold, settings):
     """Integrate the ramp, then the hold (``hold`` s, or until ``system.settled(y)``
     returns a :class:`Rest`, at most MAX_HOLD); returns (OdeSolution, onset events,
     Rest or None).  ``system.after_ramp(y)`` maps the state across the ramp's
-    end, where the actuator velocities step to zero."""
+    end, where the actuator velocities step to zero.
+
+    The hold is integrated in chunks of ``settings.chunk`` s; each goes on with the step
+    size the last one ended with.  (Left to choose its own first step, the solver takes a
+    huge one from a state near rest -- tiny derivatives -- and its error estimate, fooled
+    by the oscillation it steps over, accepts it: fig. 8a past C1, a kick of 3e-6 rad/s
+    at t = 72 s that depended on the CPU's rounding.)"""
     ramp_end = system.ramp.duration
     pieces = []
     if ramp_end > 0.0:
@@ -193,7 +231,8 @@ def run(system, y0, hold, settings):
     t, settled = ramp_end, None
     while t < ramp_end + limit:
         t_next = min(t + settings.chunk, ramp_end + limit)
-        pieces.append(_integrate(system, y0, t, t_next, settings))
+        step = _step_size(pieces[-1]) if pieces else None
+        pieces.append(_integrate(system, y0, t, t_next, settings, step))
         t, y0 = t_next, pieces[-1].y[:, -1]
         settled = system.settled(y0)
         if settled is not None and hold is None:
@@ -224,16 +263,16 @@ def _refined_peak(f, ts, values):
     return best
 
 
-def _last_exit(f, ts, values):
-    """Time after which ``f`` (<= 0 inside) stays <= 0, from its ``values`` at ``ts``: the
-    last crossing, refined (None if still outside at the last sample)."""
-    outside = np.flatnonzero(values > 0.0)
-    if outside.size == 0:
-        return float(ts[0])
-    i = int(outside[-1])
-    if i == len(ts) - 1:
+def _first_entry(f, ts, values):
+    """The first time ``f`` (<= 0 inside) is <= 0, from its ``values`` at ``ts``, refined
+    on the dense output (None if never)."""
+    inside = np.flatnonzero(values <= 0.0)
+    if inside.size == 0:
         return None
-    return float(brentq(f, ts[i], ts[i + 1], xtol=1e-12))
+    i = int(inside[0])
+    if i == 0:
+        return float(ts[0])
+    return float(brentq(f, ts[i - 1], ts[i], xtol=1e-12))
 
 
 class _Continuous:
@@ -282,10 +321,10 @@ def figures(ts, angles, rates, forces, onset, rest, ramp_end, energy=None):
     if rest is not None:
         held = ts >= ramp_end
         hold_ts = np.concatenate([[ramp_end], ts[held]])
-        exit_time = _last_exit(lambda t: float(energy(np.array([t]))[0]) / rest.threshold - 1.0,
-                               hold_ts, energy(hold_ts) / rest.threshold - 1.0)
+        entry = _first_entry(lambda t: float(energy(np.array([t]))[0]) / rest.threshold - 1.0,
+                             hold_ts, energy(hold_ts) / rest.threshold - 1.0)
         start = onset if onset is not None else ramp_end
-        settle_time = None if exit_time is None else max(exit_time - start, 0.0)
+        settle_time = None if entry is None else max(entry - start, 0.0)
     return {'peak_speed': peak_speed, 'peak_actuator_force': peak_force,
             'overshoot': overshoot, 'settle_time': settle_time, 'settled': rest is not None}
 

@@ -315,14 +315,24 @@ def test_a_reset_that_needs_more_than_one_call_completes():
 
 def test_a_module_command_beyond_its_fold_warns_at_once():
     """The early warning of the quasi-static mode (the exact operation range) for a command
-    given at rest; none for one given while the rods move (the live branch is not known)."""
+    given at rest; for one given while the rods move, the same rule from the equilibrium at
+    the actuator length now on the branch the rods are on (V1: none before, whereas the
+    quasi-static mode warns); none once the actuator has passed the fold."""
     sim = make()
     warnings = sim.command_rho(0, 0.9, 0).of_type(JumpAhead)
     assert len(warnings) == 1 and warnings[0].end.kind == 'fold'
-    assert warnings[0].end.rho == pytest.approx(simulate_snap(FIG8A, 0.9, RATE, DAMPING,
-                                                              LOWER).static_fold_rho)
-    run(sim, 0, 10**9)
-    assert not sim.command_rho(0, 0.95, 10**9).of_type(JumpAhead)
+    fold = simulate_snap(FIG8A, 0.9, RATE, DAMPING, LOWER).static_fold_rho
+    assert warnings[0].end.rho == pytest.approx(fold)
+    run(sim, 0, 10**9)                              # rho = 0.6: the fold 2.8 s ahead
+    [warning] = sim.command_rho(0, 0.95, 10**9).of_type(JumpAhead)
+    assert warning.end.kind == 'fold' and warning.rho == 0.95
+    assert warning.end.rho == pytest.approx(fold, abs=1e-9)
+    run(sim, 10**9, 4 * 10**9)                      # rho = 0.9: past the fold, snapping
+    assert sim.moving and sim.live(0).theta1 > 0.0
+    later = list(sim.command_rho(0, 0.96, 4 * 10**9).of_type(JumpAhead))
+    for now in range(4 * 10**9 + TICK_NS, 5 * 10**9, TICK_NS):
+        later += sim.advance(now).of_type(JumpAhead)
+    assert not later
 
 
 # ---------------------------------------------------------------------------

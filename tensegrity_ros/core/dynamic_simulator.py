@@ -21,11 +21,14 @@ verification of a rest state and the quasi-static prediction beside its jump, th
 tracked ahead for an early warning and a reset's settle go on over several calls the same
 way (:mod:`.bounded_work`).
 
-Early warnings (:class:`~.events.JumpAhead`), by the quasi-static mode's rule: a command
-given at rest to a target beyond the live branch's end.  One module: its exact operation
-range, at once.  A neck: the commanded path is tracked ahead (from the rest state, in the
-calls' leftover time); a jump on it is warned of if the actuator has not reached it yet.
-The same tracked path is the quasi-static prediction when the rods come to rest.
+Early warnings (:class:`~.events.JumpAhead`), by the quasi-static mode's rule: a fold
+(or a buckling branch point) ahead on the commanded path, warned of before the actuator
+gets there.  A module's command given at rest: its exact operation range, at once.
+Otherwise the commanded path is tracked ahead in the calls' leftover time
+(:mod:`.path_ahead`) -- from the rest state, or, for a command given while the rods move,
+from the quasi-static equilibrium at the actuator lengths then on the branch the rods are
+on -- and its first jump is warned of if the actuator has not reached it yet.  The path
+tracked from the rest state is also the quasi-static prediction when the rods come to rest.
 """
 from __future__ import annotations
 
@@ -39,10 +42,11 @@ import numpy as np
 
 from . import events as ev
 from .bounded_work import Job
-from .events import BranchEnd, JumpAhead, Outcome
+from .events import Outcome
 from .mechanisms import head_of, stack_module_nodes
 from .moving_module import MovingModule
 from .moving_neck import MovingNeck
+from .path_ahead import PathAhead, on_its_own_thread
 from .simulator import (DEFAULT_TIME_BUDGET, DEFAULT_WORK_LIMIT, SOLVER_ERRORS, Simulator)
 from .tolerances import DEFINITENESS_TOL
 from .stack import Stack
@@ -69,35 +73,6 @@ class LiveState:
 def _per_module(value):
     """A one-module motion's float, or a neck's tuple, as a tuple of floats."""
     return tuple(float(v) for v in np.atleast_1d(value))
-
-
-class _Forecast:
-    """The quasi-static path of a command given at rest, tracked ahead in a Job: its
-    first jump is the early warning, its result the prediction beside the snap."""
-
-    __slots__ = ('start', 'state', 'end', 'job', 'index', 'rho', 'cause', 'warned')
-
-    def __init__(self, start, state, end, job, index, rho, cause):
-        self.start, self.state, self.end, self.job = start, state, end, job
-        self.index, self.rho, self.cause, self.warned = index, rho, cause, False
-
-    def warning(self, rho):
-        """The JumpAhead of the tracked path's first jump if the actuator, at ``rho`` now,
-        has not reached it yet; None otherwise (or if tracking failed: the motion will
-        meet the trouble and report it)."""
-        try:
-            motion = self.job.result()
-        except SOLVER_ERRORS:
-            return None
-        if not motion.jumps:
-            return None
-        kind, _, critical, from_theta, _, _, _ = motion.jumps[0]
-        end_rho = float(critical[self.index].rho)
-        if (end_rho - rho) * (self.rho - rho) <= 0.0:
-            return None                 # already there: the snap says it
-        end = BranchEnd(rho=end_rho, kind=kind, modules=tuple(critical),
-                        theta=np.reshape(from_theta, (-1, 2)))
-        return JumpAhead(module=self.index, rho=self.rho, end=end, cause=self.cause)
 
 
 class _Arrival:
@@ -142,7 +117,7 @@ class DynamicSimulator(Simulator):
         self._trigger = 0               # the module whose command started the motion
         self._moving = None
         self._in_motion = False         # the moving mechanism left its last verified rest
-        self._forecast = None           # a _Forecast, or None
+        self._forecast = None           # a PathAhead, or None
         self._arrival = None            # an _Arrival, or None
         self._after_reset = []          # calls made while a reset settles, replayed after
         #: Seconds the live state is behind the last call's time (0: caught up).
@@ -250,8 +225,7 @@ class DynamicSimulator(Simulator):
         self._drop_forecast()
         t = self._seconds(now_ns)
         reports = self._moving.command(self._packed(full), t, self._deadline, self._clock)
-        if at_rest:
-            self._start_forecast(full, cause)
+        self._start_forecast(full, cause, moving=not at_rest)
         outcome = self._after_integration(reports, t, at_rest)
         return _with_events(outcome, warnings, first=True)
 
@@ -400,13 +374,18 @@ class DynamicSimulator(Simulator):
 
     # -- the path ahead: early warning and prediction -------------------------------------
 
-    def _start_forecast(self, targets, cause):
-        """Track the commanded path from the rest state ahead (a Job)."""
-        end = tuple(m.with_(rho=float(r)) for m, r in zip(self.modules, targets))
-        job = _on_its_own_thread(Job(functools.partial(
-            self._mechanism.track, self.modules, end, self.state), self._clock))
-        self._forecast = _Forecast(self.modules, self.state, end, job, self._trigger,
-                                   float(targets[self._trigger]), cause)
+    def _start_forecast(self, targets, cause, moving=False):
+        """Track the commanded path ahead (:mod:`.path_ahead`): from the rest state, or
+        from where the moving rods are."""
+        if not moving:
+            self._forecast = PathAhead.from_rest(self._mechanism, self.modules, self.state,
+                                                 targets, self._trigger, cause, self._clock)
+            return
+        m = self._moving
+        self._forecast = PathAhead.from_motion(
+            self._mechanism, m.params.modules if isinstance(m.params, Stack) else (m.params,),
+            _per_module(m.rho), np.reshape(m.theta, (-1, 2)), targets, self._trigger, cause,
+            self._clock)
 
     def _drop_forecast(self):
         """A new command or change: the path tracked ahead no longer holds."""
@@ -416,14 +395,15 @@ class DynamicSimulator(Simulator):
         self._forecast = None
 
     def _forecast_warnings(self):
-        """Work on the forecast; once done, a neck's early warning if its path jumps ahead
-        of where the actuator is (a module's came from its exact range at once)."""
+        """Work on the forecast; once done, the early warning if its path jumps ahead of
+        where the actuator is (a module's command given at rest was warned of by its exact
+        range, at once)."""
         look = self._forecast
         if look is None or look.warned or not look.job.run(self._deadline):
             return ()
         look.warned = True
-        if self._mechanism.has_operation_range:
-            return ()
+        if self._mechanism.has_operation_range and look.state is not None:
+            return ()                   # (warned of by the exact range, at the command)
         warning = look.warning(_per_module(self._moving.rho)[look.index])
         return () if warning is None else (warning,)
 
@@ -458,7 +438,7 @@ class DynamicSimulator(Simulator):
                 and look.end == end:
             predicting = look.job
         else:
-            predicting = _on_its_own_thread(Job(functools.partial(
+            predicting = on_its_own_thread(Job(functools.partial(
                 self._mechanism.track, self.modules, end, self.state), self._clock))
         creep = self._creep_report()
         reporting = Job(report if report is not None else (lambda: creep), self._clock)
@@ -535,14 +515,6 @@ def _critical_point(report, arrival, motion, landing):
         raw = ('inertial', 1.0, tuple(p.with_(rho=r) for p, r in zip(start, onset_rhos)),
                np.reshape(arrival.start_state.theta, (-1, 2)), None, False, None)
     return raw, predicted, elsewhere
-
-
-def _on_its_own_thread(job):
-    """``job`` moved to its worker now: a path that takes longer than the rest of a call
-    would be tracked twice otherwise (a Job's first attempt on the caller's thread is
-    abandoned, not resumed, when it runs out of time)."""
-    job.run(-math.inf)
-    return job
 
 
 def _with_events(outcome, events, first=False):

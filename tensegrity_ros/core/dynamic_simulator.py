@@ -396,8 +396,7 @@ class DynamicSimulator(Simulator):
 
     def _forecast_warnings(self):
         """Work on the forecast; once done, the early warning if its path jumps ahead of
-        where the actuator is (a module's command given at rest was warned of by its exact
-        range, at once)."""
+        the actuator (a module's command at rest was warned of by its exact range)."""
         look = self._forecast
         if look is None or look.warned or not look.job.run(self._deadline):
             return ()

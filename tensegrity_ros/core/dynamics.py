@@ -156,8 +156,11 @@ class ModuleEquations:
         return [rod1, rod2]
 
     def slow_angles(self, t, y):
-        """The angles of state ``y`` if both rods are slower than SLOW, else None."""
-        return None if np.max(np.abs(y[2:])) > SLOW else np.asarray(y[:2], dtype=float)
+        """The angles of state ``y`` if both rods are slower than SLOW, else None (scalar
+        tests: asked at every tick of the live loop)."""
+        if abs(float(y[2])) > SLOW or abs(float(y[3])) > SLOW:
+            return None
+        return np.array(y[:2], dtype=float)
 
     def rest_candidate(self, y, known=None):
         """The :class:`~.transient.Rest` of the equilibrium a slow state (|theta'| below

@@ -248,14 +248,20 @@ class LiveMotion:
         crept on an unstable branch, it need not be where they come to rest."""
         if self._at_rest or self.rho != self.target:
             return False
-        t_local = self.t - self._t0
+        angles = self._system.slow_angles(self.t - self._t0, self.y)
+        if angles is None:
+            return False                # (trapped rods are far slower than SLOW)
         rest = self._rest
-        if rest is None or (not transient.trapped(rest, self.y) and
-                            rest.elsewhere(self._system.slow_angles(t_local, self.y))):
-            rest = self._system.rest_candidate(self.y, known=self.rest_hint) or rest
-            self._rest = rest
-            if rest is None:
+        if rest is not None:
+            if transient.trapped(rest, self.y) is not None:
+                self._at_rest = True
+                return True
+            if not rest.elsewhere(angles):
                 return False
+        rest = self._system.rest_candidate(self.y, known=self.rest_hint)
+        if rest is None:
+            return False
+        self._rest = rest
         self._at_rest = transient.trapped(rest, self.y) is not None
         return self._at_rest
 

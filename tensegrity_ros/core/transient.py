@@ -91,9 +91,9 @@ class Rest:
         candidate was taken may come to rest in any well, and a whole turn away)."""
         if angles is None:
             return False
-        far = [np.max(np.abs(wrap(np.ravel(angles) - np.ravel(ref)))) > NEAR
-               for ref in (self.theta, self.found_at) if ref is not None]
-        return all(far)
+        angles = np.ravel(angles)
+        return not any(np.max(np.abs(wrap(angles - np.ravel(ref)))) <= NEAR
+                       for ref in (self.theta, self.found_at) if ref is not None)
 
 
 @dataclass(frozen=True)

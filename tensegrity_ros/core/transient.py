@@ -19,8 +19,8 @@ falling curve, which moves with the integration error by about that error, and w
 later bump of the computed energy (an integration error: the exact one cannot grow)
 cannot move.  The last exit from the box, used before, is decided by whether one swing
 of the slowest mode peaks just inside or just outside: half a period for 2e-9 rad.
-Precision (fig. 8a's fold and past C1, rtol 1e-8 to 1e-13, four OpenBLAS kernels): 1.5e-3
-s; docs/dynamics.md.
+Precision (fig. 8a's fold and past C1, four OpenBLAS kernels): 3e-5 s at rtol 1e-10 to
+1e-13, 1.3e-3 s at 1e-8 (docs/dynamics.md).
 
 A perfectly symmetric mechanism on its symmetric branch past a branch point is an
 unstable equilibrium that exact arithmetic never leaves (the equations keep

@@ -140,7 +140,7 @@ class Follower:
             arc = self.back_to_end(*arc[1:3], s_end)
         if arc is None or arc[0] == 'regular':
             return arc
-        return 'found', self.events.locate_on_arc(y, s, *arc[1:])
+        return 'found', self.events.locate_on_arc(self.run, y, s, *arc[1:])
 
     # -- the run -----------------------------------------------------------------
     def start(self, y, certificate):
@@ -210,7 +210,7 @@ class Follower:
     def rejected(self, path, rejected):
         """What follows a rejected step: the policy's move, an arclength step, the
         policy's answer at the event or underflow, else a shorter step."""
-        action = self.events.before_arc(rejected)
+        action = self.events.before_arc(self.run, rejected)
         found = None
         if isinstance(action, tuple):       # ('found', critical point) on the path
             found = action[1]
@@ -222,7 +222,7 @@ class Follower:
                 path.arc(*arc[1:])
                 return None
             found = None if arc is None else arc[1]
-        action = self.events.after_arc(rejected, found)
+        action = self.events.after_arc(self.run, rejected, found)
         if action is not None:
             return path.apply(action)
         path.ds *= 0.25 if rejected.reason == 'indefinite' else 0.5
@@ -255,7 +255,8 @@ class _Position:
         self.y, self.s, self.eigenvalues = y1, s1, eigenvalues1
         if run.newton_unresolved:          # (try_step's Newton: the last one run)
             run.unresolved = y1
-        self.keep()
+        if run.settings.time_budget is not None:        # (self.keep(), inline: every step)
+            run.kept = (y1, s1, eigenvalues1, tuple(self.events), certificate)
         run.note_margin(y1, s1, eigenvalues1)
         run.rescale(eigenvalues1)
         self.ds *= 2.0
@@ -279,6 +280,7 @@ class _Position:
             self.events.append(action.event)
         if action.new_branch:
             run.clear_of_margin = None     # another branch (or across a limit)
+            run.normal_form_failed = None
         self.eigenvalues = run.eigenvalues(self.y, self.s)
         self.keep()
         if action.rescale:

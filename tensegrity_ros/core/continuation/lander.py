@@ -47,6 +47,13 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
     if event is None:
         return landing, s_land, None
     at_event, s_at = landing_at_event(run, landing, s_land, s_star)
+    if s_at == s_star and run.separation(at_event, y_star) <= run.settings.passage_radius:
+        # the landing minimum, followed back to s*, is the departure: one branch of
+        # minima runs through the critical point, no jump (the N = 10 paper neck with
+        # a 1e-9 asymmetry under a head load: lambda_min dips to 4e-11 of lambda_max on
+        # its sharply turning branch, below critical_tol, where the tracker located a
+        # 'fold' whose landing led back to 5.5e-8 of it)
+        return landing, s_land, None
     return landing, s_land, Event(kind=kind, s=s_star, state=y_star, landing_s=s_at,
                                   landing=at_event, ambiguous=ambiguous)
 

@@ -5,6 +5,7 @@ root kept only where lambda_min ~ 0 there."""
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import brentq
 
 from . import indicators
 from .correctors import arc_point
@@ -67,6 +68,20 @@ def shrink_bracket(test, a, b, test_a, test_b, xtol=1e-12):
     return a, b, test_a, test_b
 
 
+def _brent(test, a, b, test_a, test_b, xtol=1e-12):
+    """The root of ``test`` in [a, b] (test(a) > 0 > test(b)) by scipy's brentq, to
+    about xtol: (a, b, test_a, test_b) with a = b = the root, test_a = 0; where a probe
+    cannot be solved (a singular Jacobian right at the root), :func:`shrink_bracket`,
+    which skips such probes.  (Brent's bisection steps bound the work where the test
+    function is far from linear, e.g. where the corrector's points leave the branch:
+    the secant with its 2 % probes then moved one end 2 % a round, 120 probes a root.)"""
+    try:
+        root = brentq(test, a, b, xtol=xtol * max(1.0, abs(b)), rtol=4.0 * np.finfo(float).eps)
+    except Lost:
+        return shrink_bracket(test, a, b, test_a, test_b, xtol)
+    return root, root, 0.0, test_b
+
+
 def _root(test, point, a, b):
     """(y*, s*) at the located root of ``test`` in [a, b], or None (raises Lost and
     the solvers' errors)."""
@@ -77,7 +92,7 @@ def _root(test, point, a, b):
         if test_b >= 0.0:           # indefinite by the tolerance only: b is critical
             a, test_a = b, 0.0
         else:
-            a, b, test_a, test_b = shrink_bracket(test, a, b, test_a, test_b)
+            a, b, test_a, test_b = _brent(test, a, b, test_a, test_b)
         root_at = a + (b - a) * test_a / (test_a - test_b) if test_a > 0.0 else a
     try:
         return point(root_at)

@@ -55,10 +55,12 @@ class RunState:
         #: Stop (failed) at a critical point instead of landing: a landing's own
         #: minimum followed back to its event (nested landings there could recurse).
         self.stop_at_events = False
+        self.stopped_at_event = False   # such a run ended at one
         #: From a pitchfork-certified state, solve a command's end short of its branch
         #: point by the normal form (off in the tracker that follows the branch away for it).
         self.normal_form_end = True
         self.normal_form_tried = None   # the s it was tried at (once per state)
+        self.normal_form_failed = None  # lambda_min where it last failed (this branch)
         #: Set on the run that follows a minimum onto a landing
         #: (:func:`.lander.leads_to`): its own landings are not checked that way again.
         self.following_onto_landing = False

@@ -19,7 +19,7 @@ from dataclasses import replace
 import numpy as np
 
 from . import certificates
-from .correctors import arc_point
+from .correctors import arc_point, solve_branch_point
 from .problem import admissible
 from .results import PITCHFORK_CERTIFIED, TrackingError
 from .settings import LOCATION_TOL, PITCHFORK_CONTRACTION, UNRESOLVED
@@ -238,22 +238,39 @@ def toward_branch_point(run, y, s, s_end, near=False):
     certificate, run.certificate = run.certificate, ''
     far, remembered = _far_state(run, y, s, s_end, certificate)
     if far is not None:
-        s_far, far_state, far_eigenvalues = far
-        rate = (far_eigenvalues[0] - lam) / (s_far - s)
-        s_star = s - lam / rate if rate < 0.0 else -math.inf
-        if s < s_star:
-            ratio = math.sqrt((s_star - s) / (s_star - s_far))     # of y's amplitude
-            y_star = (y - ratio * far_state) / (1.0 - ratio)
-        if s < s_star and s_end < s_star:
-            found = buckled_at(run, s_star, y_star, far_state, s_far, s_end)
-        elif s < s_star and not remembered:
-            s_end = min(s_end, 2.0 * s_star - s)   # as far before s* as y was past it
-            found = unbuckled_at(run, s_star, y_star, rate, s_end)
+        found, s_end = _end_by_the_normal_form(run, y, s, s_end, lam, far, remembered)
     if found is None:
         run.certificate = certificate
         run.normal_form_failed = lam
         return None
     return found, s_end
+
+
+def _end_by_the_normal_form(run, y, s, s_end, lam, far, remembered):
+    """(the end state or None, the s it is at) of :func:`toward_branch_point` from the
+    far state: s* on lambda_min's linear law through it and y, refined by the branch
+    point's own equations where the command ends short of s*
+    (:func:`.correctors.solve_branch_point`:
+    y's lambda_min is known to a few per cent only, which put s* 3.5e-11 in s off on the
+    Haswell kernel, and the end 6.5e-11 short of it failed the 25 % test: H30), y* on
+    the square-root law."""
+    s_far, far_state, far_eigenvalues = far
+    rate = (far_eigenvalues[0] - lam) / (s_far - s)
+    s_star = s - lam / rate if rate < 0.0 else -math.inf
+    if not s < s_star:
+        return None, s_end
+    ratio = math.sqrt((s_star - s) / (s_star - s_far))     # of y's amplitude
+    y_star = (y - ratio * far_state) / (1.0 - ratio)
+    if s_end < s_star:
+        solved = solve_branch_point(run, y_star, s_star)
+        if (solved is not None and s_end < solved[1]
+                and abs(solved[1] - s_star) <= 0.5 * (s_star - s)):
+            y_star, s_star = solved
+        return buckled_at(run, s_star, y_star, far_state, s_far, s_end), s_end
+    if remembered:
+        return None, s_end
+    s_end = min(s_end, 2.0 * s_star - s)       # as far before s* as y was past it
+    return unbuckled_at(run, s_star, y_star, rate, s_end), s_end
 
 
 def unbuckled_at(run, s_star, y_star, rate, s_end):
@@ -303,8 +320,6 @@ def away_from_branch_point(run, y, s, length, certificate):
             # its own margin test (scaled to this state's stiffness) may refuse a state
             # this run verified: then there is no far state (must not end the command)
             return None
-        if away.state.stopped_at_event:
-            return None             # a critical point on the way: a longer run meets it too
         if far.status != 'ok' or far.events or far.passages:
             continue                # too short to leave the noise (or the wrong way)
         if far.eigenvalues[0] > margin * max(abs(far.eigenvalues[-1]), run.scale * 1e-3):

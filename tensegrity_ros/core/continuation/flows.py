@@ -14,7 +14,7 @@ import numpy as np
 from scipy.integrate import LSODA
 from scipy.optimize import minimize_scalar
 
-from ..bounded_work import checkpoint
+from .. import bounded_work
 from .run_state import inf_norm
 from .settings import CROSSING_APPROACH, MAX_CROSSING_LEGS
 
@@ -57,7 +57,7 @@ class _Flow:
         if self.budget < 0:
             raise FlowBudgetExceeded
         if self.budget % 8 == 0:    # inside a solver step too: a neck's takes ~30
-            checkpoint()            # evaluations (scipy >= 1.17's LSODA is re-entrant)
+            bounded_work.checkpoint()    # evaluations (scipy >= 1.17's LSODA is re-entrant)
         return self.field(v, self.s)
 
     def watch(self, solver):        # at each solver step of the elastic flow
@@ -173,7 +173,7 @@ def flow_to_rest(run, velocity, y, tol, rtol=1e-7, stop=None):
     with np.errstate(all='ignore'):
         solver = LSODA(velocity, 0.0, y, 1e7 / run.scale, rtol=rtol, atol=1e-3 * rtol)
         while solver.status == 'running':
-            checkpoint()            # between solver steps (and inside: velocity)
+            bounded_work.checkpoint()    # between solver steps (and inside: velocity)
             solver.step()
             if inf_norm(velocity(solver.t, solver.y)) <= tol:
                 return solver.y

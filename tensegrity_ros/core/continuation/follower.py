@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..bounded_work import checkpoint
+from .. import bounded_work
 from . import certificates
 from .correctors import arc_point, curve_tangent
 from .results import PITCHFORK_CERTIFIED, Track, TrackingError
@@ -186,7 +186,7 @@ class Follower:
         """One step from ``path``'s state (which it moves); a :class:`Stop` to end."""
         run, cfg = self.run, self.run.settings
         run.steps += 1
-        checkpoint()                # a bounded caller may pause (or give up) here
+        bounded_work.checkpoint()    # a bounded caller may pause (or give up) here
         if run.steps > cfg.max_steps:
             return Stop('too many steps')
         y, s, eigenvalues = path.y, path.s, path.eigenvalues

@@ -24,7 +24,7 @@ from .lander import landing_at_event
 from .results import BRANCH_POINT, FOLD, Event
 from .run_state import inf_norm, solve
 from .settings import EXACT_CROSSING_STALL, SNAP_DISTANCE
-from ..bounded_work import checkpoint
+from .. import bounded_work
 
 
 def through_linkage_limit(run, y, s, s_end):
@@ -270,7 +270,7 @@ def nearest_minimum(run, y, s):
     for direction in _search_directions(run):
         for amplitude in (1e-5, 1e-4, 1e-3, 1e-2, 1e-1):
             for sign in (1.0, -1.0):
-                checkpoint()
+                bounded_work.checkpoint()
                 moved = y + sign * amplitude * direction
                 try:
                     found = run.newton(problem.project(moved, s), s)

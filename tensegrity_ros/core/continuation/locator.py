@@ -5,10 +5,10 @@ root kept only where lambda_min ~ 0 there."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import brentq
 
 from . import indicators
-from .correctors import arc_point
+from .correctors import arc_point, pinned_newton
+from .results import BRANCH_POINT
 
 
 class Lost(Exception):
@@ -68,20 +68,6 @@ def shrink_bracket(test, a, b, test_a, test_b, xtol=1e-12):
     return a, b, test_a, test_b
 
 
-def _brent(test, a, b, test_a, test_b, xtol=1e-12):
-    """The root of ``test`` in [a, b] (test(a) > 0 > test(b)) by scipy's brentq, to
-    about xtol: (a, b, test_a, test_b) with a = b = the root, test_a = 0; where a probe
-    cannot be solved (a singular Jacobian right at the root), :func:`shrink_bracket`,
-    which skips such probes.  (Brent's bisection steps bound the work where the test
-    function is far from linear, e.g. where the corrector's points leave the branch:
-    the secant with its 2 % probes then moved one end 2 % a round, 120 probes a root.)"""
-    try:
-        root = brentq(test, a, b, xtol=xtol * max(1.0, abs(b)), rtol=4.0 * np.finfo(float).eps)
-    except Lost:
-        return shrink_bracket(test, a, b, test_a, test_b, xtol)
-    return root, root, 0.0, test_b
-
-
 def _root(test, point, a, b):
     """(y*, s*) at the located root of ``test`` in [a, b], or None (raises Lost and
     the solvers' errors)."""
@@ -92,7 +78,7 @@ def _root(test, point, a, b):
         if test_b >= 0.0:           # indefinite by the tolerance only: b is critical
             a, test_a = b, 0.0
         else:
-            a, b, test_a, test_b = _brent(test, a, b, test_a, test_b)
+            a, b, test_a, test_b = shrink_bracket(test, a, b, test_a, test_b)
         root_at = a + (b - a) * test_a / (test_a - test_b) if test_a > 0.0 else a
     try:
         return point(root_at)
@@ -120,12 +106,29 @@ def critical_point(run, test, point, a, b):
 
 def crossing_on_path(run, y, s, tangent, s_bad):
     """The critical point where lambda_min crosses zero between the verified (y, s)
-    and the verified indefinite state at s_bad (natural parametrisation)."""
+    and the verified indefinite state at s_bad (natural parametrisation).
+
+    A probe is Newton from the prediction; where that fails or lands far next to a
+    branch point (the critical mode orthogonal to F_s at the start), the bordered
+    corrector (:func:`.correctors.pinned_newton`).  There Newton's update along the soft
+    mode is rounding over lambda_min: within ~1.5e-9 in s of the perfect N = 3 chord
+    ramp's branch point every natural probe was lost, and the event was located on
+    arclength points instead, 1.4e-9 .. 3.7e-9 in s off on the Sandybridge and Haswell
+    BLAS kernels (H30).  Not next to an imperfect one: its soft mode is not a symmetry's,
+    and pinned states there, equilibria to the residual test only because lambda_min is
+    ~1e-11 of lambda_max, made false folds (the 1e-9-imperfect N = 5 paper neck)."""
+    pinning = []
+
     def point(t):
-        found = run.newton(y + (t - s) * tangent, t)
-        if found is None or run.step_norm(found - y - (t - s) * tangent) > \
-                0.5 * abs(t - s) * run.step_norm(tangent) + run.settings.same_state_tol:
-            raise Lost
+        predicted = y + (t - s) * tangent
+        near = 0.5 * abs(t - s) * run.step_norm(tangent) + run.settings.same_state_tol
+        found = run.newton(predicted, t)
+        if found is None or run.step_norm(found - predicted) > near:
+            if not pinning:
+                pinning.append(indicators.kind(run, y, s, run.critical(y, s)[1]) == BRANCH_POINT)
+            found = pinned_newton(run, predicted, t) if pinning[0] else None
+            if found is None or run.step_norm(found - predicted) > near:
+                raise Lost
         return found, t
 
     return critical_point(run, lambda t: run.margin(*point(t)), point, s, s_bad)

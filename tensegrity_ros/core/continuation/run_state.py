@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from ..bounded_work import checkpoint
+from .. import bounded_work
 from .problem import SubPath
 from .settings import UNRESOLVED_UPDATE
 from .step_rules import energy_consistent, forward_rate, positive_definite
@@ -55,7 +55,6 @@ class RunState:
         #: Stop (failed) at a critical point instead of landing: a landing's own
         #: minimum followed back to its event (nested landings there could recurse).
         self.stop_at_events = False
-        self.stopped_at_event = False   # such a run ended at one
         #: From a pitchfork-certified state, solve a command's end short of its branch
         #: point by the normal form (off in the tracker that follows the branch away for it).
         self.normal_form_end = True
@@ -158,7 +157,7 @@ class RunState:
 
     def margin(self, y, s):
         """The test function lambda_min in scale units (its root is the critical point)."""
-        checkpoint()                    # every probe of a localisation
+        bounded_work.checkpoint()    # every probe of a localisation
         return self.eigenvalues(y, s)[0] / self.scale
 
     def critical(self, y, s, reference=None):

@@ -17,7 +17,6 @@ the Haswell kernel's run overshot one budget by 59.)  The work between two check
 points is bounded too, by GRANULARITY (see there).
 """
 import numpy as np
-import pytest
 
 from tensegrity_ros.core import ModuleParams, TrackerSettings, equilibria, settle
 from tensegrity_ros.core import bounded_work, continuation

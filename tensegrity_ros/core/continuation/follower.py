@@ -197,7 +197,7 @@ class Follower:
         if path.rate is None:
             path.rate = run.eigenvalue_rate(y, s, tangent, eigenvalues[0])
         path.ds = ds = min(path.ds, s_end - s,
-                           step_bound(run.step_norm(tangent), eigenvalues[0], path.rate, cfg))
+                           step_bound(run.motion(y, s, tangent), eigenvalues[0], path.rate, cfg))
         y1, eig1, reason = self.try_step(y, s, tangent, ds)
         certified = reason == 'indefinite' and self.certified(eigenvalues, eig1, path.rate, ds,
                                                               s_end - s)

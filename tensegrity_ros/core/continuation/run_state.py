@@ -88,6 +88,13 @@ class RunState:
         """Size of a state change for the step limits (weighted max norm)."""
         return inf_norm(v if self.weights is None else self.weights * v)
 
+    def motion(self, y, s, dy):
+        """How far a state change dy moves the mechanism at (y, s), for the step bound:
+        the problem's optional ``motion`` (a neck: its largest node displacement), else
+        the weighted state norm."""
+        measure = getattr(self.problem, 'motion', None)
+        return self.step_norm(dy) if measure is None else measure(y, s, dy)
+
     def separation(self, a, b):
         """Distance of two states (weighted), with angles compared modulo 2 pi."""
         return self.step_norm(self.canonical(a - b))

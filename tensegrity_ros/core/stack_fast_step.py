@@ -156,7 +156,9 @@ def whole_command_step(path, y, settings, known=None):
     if info != 0:
         return None
     reach = _inf_norm(weights * backward)
-    motion = path.motion_at(start, backward)  # (the step bound's measure, as the tracker's)
+    # the step bound's measure, as the tracker's: the node displacement, which the weighted
+    # norm bounds, so it is computed only where that bound is not enough
+    motion = reach if reach <= cfg.max_state_step else path.motion_at(start, backward)
     if not motion <= cfg.max_state_step:      # cheap early out: step_bound below says the same
         return None
     energy0 = path.energy_at(start) if known is None else known.energy

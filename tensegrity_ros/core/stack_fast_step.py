@@ -156,7 +156,10 @@ def whole_command_step(path, y, settings, known=None):
     if info != 0:
         return None
     reach = _inf_norm(weights * backward)
-    if not reach <= cfg.max_state_step:       # cheap early out: step_bound below says the same
+    # the step bound's measure, as the tracker's: the node displacement, which the weighted
+    # norm bounds, so it is computed only where that bound is not enough
+    motion = reach if reach <= cfg.max_state_step else path.motion_at(start, backward)
+    if not motion <= cfg.max_state_step:      # cheap early out: step_bound below says the same
         return None
     energy0 = path.energy_at(start) if known is None else known.energy
     energy_s0 = path.energy_s_at(start)
@@ -172,7 +175,7 @@ def whole_command_step(path, y, settings, known=None):
     values1 = eigenvalues1.tolist()
     if not _continuation.positive_definite(values1, scale, cfg):
         return None
-    if not _within_step_bound(path, y, backward, reach, eigenvalues[0], values1[0], cfg):
+    if not _within_step_bound(path, y, backward, motion, eigenvalues[0], values1[0], cfg):
         return None
     return y1, eigenvalues1, energy1, residual, end, factors
 

@@ -3,6 +3,7 @@ projection onto the chord constraints (a mixin of :class:`.stack_path.StackPath`
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg.lapack import dpotrf as _dpotrf, dpotrs as _dpotrs, dsyevd as _dsyevd
 
 from .stack_model import _null_basis, _solve_gram, _solve_guarded
 
@@ -22,8 +23,42 @@ PROJECT_STEP = 0.1
 PROJECTION_TOL = 1e-9
 
 
+def _cholesky(matrix):
+    """The upper Cholesky factor of a symmetric positive definite ``matrix`` (LAPACK
+    directly: numpy.linalg's per-call checks cost ~20 us on these small matrices, 20
+    times the solve itself, and a landing flow solves ~10^4 times)."""
+    factor, info = _dpotrf(matrix, lower=0, clean=0)
+    if info != 0:
+        raise np.linalg.LinAlgError(f'not positive definite (dpotrf info={info})')
+    return factor
+
+
+def _cho_solve(factor, rhs):
+    """matrix^-1 rhs from :func:`_cholesky`'s factor."""
+    x, info = _dpotrs(factor, rhs, lower=0)
+    if info != 0:
+        raise np.linalg.LinAlgError(f'dpotrs info={info}')
+    return x
+
+
+def _spd_solve(matrix, rhs):
+    return _cho_solve(_cholesky(matrix), rhs)
+
+
+def _smallest_eigenvalue(matrix):
+    """The smallest eigenvalue of a small symmetric ``matrix``."""
+    if matrix.shape[0] == 1:
+        return float(matrix[0, 0])
+    values, _, info = _dsyevd(matrix, compute_v=0)
+    if info != 0:
+        raise np.linalg.LinAlgError(f'dsyevd info={info}')
+    return float(values[0])
+
+
 class StackFlows:
-    """The flows and the projection of :class:`.stack_path.StackPath`."""
+    """The flows and the projection of :class:`.stack_path.StackPath`.  The metric, the
+    chords' Gram matrix and the reduced metric are positive definite: they are solved
+    by their Cholesky factors."""
 
     def _unconstrained_gradient(self, p):
         """dU/dphi without the chord forces (2N,)."""
@@ -36,30 +71,33 @@ class StackFlows:
         """Overdamped velocity in the Cartesian metric of the nodes: the projected force
         plus a pull back onto the chord constraints."""
         p = self.point(y, s)
-        free = np.linalg.solve(p.metric(self), self._unconstrained_gradient(p))
+        metric = _cholesky(p.metric(self))
+        free = _cho_solve(metric, self._unconstrained_gradient(p))
         if not self.topology.n_chords:
             return -free
-        jc, mobility_jc, gram, rate = self._damped_constraints(p)
-        correction = np.linalg.solve(gram, jc @ free - rate * p.constraints(self))
+        jc, mobility_jc, gram, rate = self._damped_constraints(p, metric)
+        correction = _spd_solve(gram, jc @ free - rate * p.constraints(self))
         return np.concatenate([-free + mobility_jc @ correction, np.zeros_like(p.mu)])
 
-    def _damped_constraints(self, p):
+    def _damped_constraints(self, p, metric):
         """(constraint Jacobian, metric^-1 jc^T, their Gram matrix damped, pull rate)
-        for the overdamped flows.  Damped (Levenberg): smooth through kinematic
-        singularities of the stack, where rods fold flat onto a chord and the constraint
-        rows degenerate."""
-        jc, mobility_jc, gram, smallest = self._chord_gram(p)
+        for the overdamped flows (``metric``: the metric's Cholesky factor).  Damped
+        (Levenberg): smooth through kinematic singularities of the stack, where rods fold
+        flat onto a chord and the constraint rows degenerate."""
+        jc, mobility_jc, gram, smallest = self._chord_gram(p, metric)
         if smallest < _DAMPING_ONSET:
             gram = gram + _DAMPING * (1.0 - smallest / _DAMPING_ONSET) ** 2 * np.eye(len(jc))
         return jc, mobility_jc, gram, float(np.max(p.values.k)) * 2.0
 
-    def _chord_gram(self, p):
+    def _chord_gram(self, p, metric=None):
         """(constraint Jacobian, metric^-1 jc^T, their Gram matrix, its smallest
         eigenvalue): whether the flows damp turns on the last."""
         jc = p.constraint_jacobian(self)
-        mobility_jc = np.linalg.solve(p.metric(self), jc.T)
+        if metric is None:
+            metric = _cholesky(p.metric(self))
+        mobility_jc = _cho_solve(metric, jc.T)
         gram = jc @ mobility_jc
-        return jc, mobility_jc, gram, np.linalg.eigvalsh(gram)[0]
+        return jc, mobility_jc, gram, _smallest_eigenvalue(gram)
 
     def damped(self, y, s):
         """Whether :meth:`descent` damps its projection at ``y`` (a module so near flat
@@ -85,12 +123,13 @@ class StackFlows:
         p = self.point(y, s)
         metric = p.metric(self)
         gradient = self._unconstrained_gradient(p)
+        factor = _cholesky(metric)
         if not self.topology.n_chords:
-            return -np.linalg.solve(metric, gradient)
-        jc, mobility_jc, gram, rate = self._damped_constraints(p)
+            return -_cho_solve(factor, gradient)
+        jc, mobility_jc, gram, rate = self._damped_constraints(p, factor)
         z = _null_basis(jc, self.topology.trailing_columns)
-        tangential = z @ np.linalg.solve(z.T @ metric @ z, z.T @ gradient)
-        pull = mobility_jc @ np.linalg.solve(gram, rate * p.constraints(self))
+        tangential = z @ _spd_solve(z.T @ metric @ z, z.T @ gradient)
+        pull = mobility_jc @ _spd_solve(gram, rate * p.constraints(self))
         return np.concatenate([-tangential - pull, np.zeros_like(p.mu)])
 
     def project(self, y, s):

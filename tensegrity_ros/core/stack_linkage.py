@@ -24,8 +24,9 @@ class StackLinkage:
         module).  Two branches of configurations cross there, so the equilibrium
         equations are singular although the state may be a strict minimum, and the
         chord's force grows without bound where the load pushes along the fold (see
-        ``continuation.linkage_limits.through_linkage_limit``).  So a module nearly flat where the equations
-        are singular to rounding at a minimum is at its limit too (:meth:`_unresolved`)."""
+        ``continuation.linkage_limits.through_linkage_limit``).  So a module nearly flat
+        where the equations are singular to rounding at a minimum is at its limit too
+        (:meth:`_unresolved`)."""
         if not self.topology.n_chords:
             return ''
         jc = self.point(y, s).constraint_jacobian(self)

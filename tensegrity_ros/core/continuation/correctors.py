@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 
+from .. import bounded_work
 from .run_state import inf_norm
 from .settings import ARC_RESOLUTION
 
@@ -73,3 +74,88 @@ def arc_point(run, y0, s0, direction, h, any_s=False):
     if not run.energy_consistent(y0, s0, y, s):
         return None
     return y, s
+
+
+def pinned_newton(run, y, s):
+    """Newton with the state's component along the Jacobian's softest direction held at
+    y's: the bordered system {F(x, s) + beta u = 0, v . (x - y) = 0} (u, v the Jacobian's
+    left and right singular vectors of its smallest singular value at y), regular where
+    the Jacobian is singular along v (a branch point).  ``None`` unless it converges to a
+    residual within the tolerance (beta ~ 0: an equilibrium through that hyperplane
+    exists next to y).  (H30, issue 30: within ~1.5e-9 in s of the perfect N = 3 chord
+    ramp's branch point Newton's update along the soft mode is rounding over lambda_min
+    and every natural probe was lost.)"""
+    problem = run.problem
+    try:
+        u_all, _, vt = np.linalg.svd(problem.jacobian(y, s))
+    except np.linalg.LinAlgError:
+        return None
+    u, v, n = u_all[:, -1], vt[-1], y.size
+    matrix = np.zeros((n + 1, n + 1))
+    matrix[:n, n], matrix[n, :n] = u, v
+    x, beta, previous = np.array(y, dtype=float), 0.0, math.inf
+    for _ in range(run.settings.newton_iterations):
+        matrix[:n, :n] = problem.jacobian(x, s)
+        rhs = np.append(problem.residual(x, s) + beta * u, v @ (x - y))
+        try:
+            delta = np.linalg.solve(matrix, rhs)
+        except np.linalg.LinAlgError:
+            return None
+        size = inf_norm(delta[:n])
+        if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
+            break
+        x, beta, previous = x - delta[:n], beta - delta[n], size
+        if size <= 1e-14 * (1.0 + inf_norm(x)):
+            break
+    return x if run.residual_ok(x, s) else None
+
+
+def solve_branch_point(run, y, s):
+    """(y*, s*) of the branch point next to (y, s), to rounding, or ``None``: Newton
+    (finite-difference Jacobian) on the regular extended system of DESIGN.md section 3,
+    {F(y, s) + beta u0 = 0, lambda_min(y, s) = 0, u(y, s) . F_s(y, s) = 0}, u the
+    Jacobian's left singular vector of its smallest singular value (u0, the start's, in
+    the unfolding term).  Regular at a simple branch point: lambda_min fixes s*, u . F_s
+    the state along the critical mode, beta the unfolding.  Accepted where beta and the
+    residual vanish to the tolerance and the solution stays within ``passage_radius`` of
+    y.  (H30, issue 30.)"""
+    problem, n = run.problem, run.problem.size
+    try:
+        u0 = np.linalg.svd(problem.jacobian(y, s))[0][:, -1]
+    except np.linalg.LinAlgError:
+        return None
+
+    def system(z):
+        x, t = z[:n], z[n]
+        u = np.linalg.svd(problem.jacobian(x, t))[0][:, -1]
+        return np.concatenate([problem.residual(x, t) + z[n + 1] * u0,
+                               [run.eigenvalues(x, t)[0] / run.scale,
+                                u @ problem.residual_s(x, t)]])
+
+    z = _fd_newton(run, system, np.append(np.asarray(y, dtype=float), [s, 0.0]))
+    if z is None:
+        return None
+    x, t = z[:n], float(z[n])
+    if (not run.residual_ok(x, t) or run.separation(x, y) > run.settings.passage_radius
+            or abs(run.eigenvalues(x, t)[0]) > run.settings.critical_tol * run.scale):
+        return None
+    return x, t
+
+
+def _fd_newton(run, system, z, h=1e-7):
+    """Newton on ``system`` from z with a forward-difference Jacobian; None where a
+    solve fails or an update is not finite."""
+    try:
+        for _ in range(run.settings.newton_iterations):
+            bounded_work.checkpoint()
+            f = system(z)
+            jac = np.column_stack([(system(z + h * e) - f) / h for e in np.eye(z.size)])
+            delta = np.linalg.solve(jac, f)
+            if not np.all(np.isfinite(delta)):
+                return None
+            z = z - delta
+            if inf_norm(delta) <= 1e-14 * (1.0 + inf_norm(z)):
+                break
+    except np.linalg.LinAlgError:
+        return None
+    return z

@@ -14,22 +14,23 @@ import numpy as np
 from scipy.integrate import LSODA
 from scipy.optimize import minimize_scalar
 
-from ..bounded_work import checkpoint
+from .. import bounded_work
 from .run_state import inf_norm
 from .settings import CROSSING_APPROACH, MAX_CROSSING_LEGS
 
 
 class FlowBudgetExceeded(Exception):
-    """A landing flow used up its evaluation budget."""
+    """A landing flow used up its evaluation budget (or left its leash)."""
 
 
 class _Flow:
     """The velocity field a slide integrates (elastic or rigid), with its evaluation
     budget, and whether the elastic flow was damped on its way."""
 
-    def __init__(self, run, s, rigid_first):
+    def __init__(self, run, s, rigid_first, leash=None):
         problem = run.problem
         self.s = s
+        self.run, self.leash, self.start = run, leash, None
         # (not in a tracker that stops at events: its landings, at a critical point
         # reached to rounding, are never kept but where the minimum goes on; there the
         # rigid flows only cost: seed 1, stream 10 of bench_round_commands, 14 in one
@@ -56,8 +57,10 @@ class _Flow:
         self.budget -= 1
         if self.budget < 0:
             raise FlowBudgetExceeded
+        if self.leash is not None and self.run.step_norm(v - self.start) > self.leash:
+            raise FlowBudgetExceeded            # it went farther than it was let
         if self.budget % 8 == 0:    # inside a solver step too: a neck's takes ~30
-            checkpoint()            # evaluations (scipy >= 1.17's LSODA is re-entrant)
+            bounded_work.checkpoint()    # evaluations (scipy >= 1.17's LSODA is re-entrant)
         return self.field(v, self.s)
 
     def watch(self, solver):        # at each solver step of the elastic flow
@@ -74,7 +77,7 @@ class _Flow:
                             stop=None if self.damped_at is None else self.watch)
 
 
-def slide(run, y, s, rigid_first=False):
+def slide(run, y, s, rigid_first=False, leash=None):
     """Overdamped gradient flow at fixed s until it comes to rest, then Newton polish.
 
     Integrated by LSODA, stopping at the first step where the velocity is negligible.
@@ -86,10 +89,12 @@ def slide(run, y, s, rigid_first=False):
     model itself (``rigid_first``: from the start, as from a flat crossing's
     half-branch).  Where the flow came to rest on a minimum but was damped on the way
     (the problem's optional ``damped``: it passed a module near flat as elastic chords),
-    the rigid flow from the same start decides, where it rests on one.
+    the rigid flow from the same start decides, where it rests on one.  ``leash``: a
+    flow that goes farther than this from ``y`` (weighted state norm) rests nowhere.
     """
     problem, start = run.problem, y
-    flow = _Flow(run, s, rigid_first)
+    flow = _Flow(run, s, rigid_first, leash)
+    flow.start = y
     # Far below any velocity met on the way (near a fold's ghost the landing
     # offset keeps it above ~1e-7 scale), so the flow stops only at rest.
     tol = 1e-10 * run.scale
@@ -173,7 +178,7 @@ def flow_to_rest(run, velocity, y, tol, rtol=1e-7, stop=None):
     with np.errstate(all='ignore'):
         solver = LSODA(velocity, 0.0, y, 1e7 / run.scale, rtol=rtol, atol=1e-3 * rtol)
         while solver.status == 'running':
-            checkpoint()            # between solver steps (and inside: velocity)
+            bounded_work.checkpoint()    # between solver steps (and inside: velocity)
             solver.step()
             if inf_norm(velocity(solver.t, solver.y)) <= tol:
                 return solver.y

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..bounded_work import checkpoint
+from .. import bounded_work
 from . import certificates
 from .correctors import arc_point, curve_tangent
 from .results import PITCHFORK_CERTIFIED, Track, TrackingError
@@ -140,7 +140,7 @@ class Follower:
             arc = self.back_to_end(*arc[1:3], s_end)
         if arc is None or arc[0] == 'regular':
             return arc
-        return 'found', self.events.locate_on_arc(y, s, *arc[1:])
+        return 'found', self.events.locate_on_arc(self.run, y, s, *arc[1:])
 
     # -- the run -----------------------------------------------------------------
     def start(self, y, certificate):
@@ -186,7 +186,7 @@ class Follower:
         """One step from ``path``'s state (which it moves); a :class:`Stop` to end."""
         run, cfg = self.run, self.run.settings
         run.steps += 1
-        checkpoint()                # a bounded caller may pause (or give up) here
+        bounded_work.checkpoint()    # a bounded caller may pause (or give up) here
         if run.steps > cfg.max_steps:
             return Stop('too many steps')
         y, s, eigenvalues = path.y, path.s, path.eigenvalues
@@ -197,7 +197,7 @@ class Follower:
         if path.rate is None:
             path.rate = run.eigenvalue_rate(y, s, tangent, eigenvalues[0])
         path.ds = ds = min(path.ds, s_end - s,
-                           step_bound(run.step_norm(tangent), eigenvalues[0], path.rate, cfg))
+                           step_bound(run.motion(y, s, tangent), eigenvalues[0], path.rate, cfg))
         y1, eig1, reason = self.try_step(y, s, tangent, ds)
         certified = reason == 'indefinite' and self.certified(eigenvalues, eig1, path.rate, ds,
                                                               s_end - s)
@@ -210,7 +210,7 @@ class Follower:
     def rejected(self, path, rejected):
         """What follows a rejected step: the policy's move, an arclength step, the
         policy's answer at the event or underflow, else a shorter step."""
-        action = self.events.before_arc(rejected)
+        action = self.events.before_arc(self.run, rejected)
         found = None
         if isinstance(action, tuple):       # ('found', critical point) on the path
             found = action[1]
@@ -222,7 +222,7 @@ class Follower:
                 path.arc(*arc[1:])
                 return None
             found = None if arc is None else arc[1]
-        action = self.events.after_arc(rejected, found)
+        action = self.events.after_arc(self.run, rejected, found)
         if action is not None:
             return path.apply(action)
         path.ds *= 0.25 if rejected.reason == 'indefinite' else 0.5
@@ -255,7 +255,8 @@ class _Position:
         self.y, self.s, self.eigenvalues = y1, s1, eigenvalues1
         if run.newton_unresolved:          # (try_step's Newton: the last one run)
             run.unresolved = y1
-        self.keep()
+        if run.settings.time_budget is not None:        # (self.keep(), inline: every step)
+            run.kept = (y1, s1, eigenvalues1, tuple(self.events), certificate)
         run.note_margin(y1, s1, eigenvalues1)
         run.rescale(eigenvalues1)
         self.ds *= 2.0
@@ -279,6 +280,7 @@ class _Position:
             self.events.append(action.event)
         if action.new_branch:
             run.clear_of_margin = None     # another branch (or across a limit)
+            run.normal_form_failed = None
         self.eigenvalues = run.eigenvalues(self.y, self.s)
         self.keep()
         if action.rescale:

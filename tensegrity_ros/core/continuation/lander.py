@@ -31,6 +31,9 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
     buckled = follow_buckled(run, s_star, y_star, s_end)
     if buckled is not None:                 # supercritical: no jump, the state goes on
         return buckled
+    goes_on = released_rests_nearby(run, s_star, y_star, s_end)
+    if goes_on is not None:
+        return (*goes_on, None)
     s_land = s_star + landing_offset(run, kind, y_star, s_star)
     if s_land > s_end and not admissible(run.problem, s_land):
         s_land = s_end
@@ -47,8 +50,48 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
     if event is None:
         return landing, s_land, None
     at_event, s_at = landing_at_event(run, landing, s_land, s_star)
+    if s_at == s_star and run.separation(at_event, y_star) <= run.settings.passage_radius:
+        # the landing minimum, followed back to s*, is the departure: one branch of
+        # minima runs through the critical point, no jump (the N = 10 paper neck with
+        # a 1e-9 asymmetry under a head load: lambda_min dips to 4e-11 of lambda_max on
+        # its sharply turning branch, below critical_tol, where the tracker located a
+        # 'fold' whose landing led back to 5.5e-8 of it)
+        return landing, s_land, None
     return landing, s_land, Event(kind=kind, s=s_star, state=y_star, landing_s=s_at,
                                   landing=at_event, ambiguous=ambiguous)
+
+
+#: Where the mechanism released at a critical state is let come to rest (in s past it)
+#: to see whether it stays next to it (:func:`released_rests_nearby`).
+RELEASE_OFFSETS = (1e-8, 1e-6)
+#: A released flow that goes farther than this many step bounds rests nowhere near (the
+#: N = 7 neck's went 0.099 out before it came to rest 8.5e-3 from its departure).
+RELEASE_LEASH = 4.0
+
+
+def released_rests_nearby(run, s_star, y_star, s_end):
+    """(state, s) where the mechanism released at the critical state, the parameters
+    frozen 1e-8 and 1e-6 past it, comes to rest next to it, closer at the closer offset
+    (as a square root, or a line: the rests' distances at least 3 times apart): a
+    branch of minima goes on through the critical point, no jump; ``None`` elsewhere (a
+    jump lands as far at both).  The critical point is then a degenerate point of the
+    branch, not its end: a module passing close to its flat crossing (a random N = 7
+    neck, all actuators, the overdamped flow resting 1.1e-4, 3.5e-4, 1.1e-3 rad from the
+    departure at 1e-8 .. 1e-6 past by the reference's own model, where a step-off of
+    1e-2 along the critical mode slid 0.02 rad onto the crossing's other arm, a 'fold')."""
+    near, far = (s_star + offset for offset in RELEASE_OFFSETS)
+    if far > s_end:
+        return None
+    rests = []
+    for s in (near, far):       # (a flow that goes far: no rest near; its way out from the
+        #                         departure overshoots the rest by up to ~12 times)
+        rests.append(slide(run, y_star, s, leash=RELEASE_LEASH * run.settings.max_state_step))
+        if rests[-1] is None:
+            return None
+    apart = [run.separation(rest, y_star) for rest in rests]
+    if not (apart[1] < run.settings.max_state_step and apart[1] >= 3.0 * apart[0]):
+        return None
+    return rests[1], far
 
 
 def landing_offset(run, kind, y_star, s_star):

@@ -24,7 +24,7 @@ from .lander import landing_at_event
 from .results import BRANCH_POINT, FOLD, Event
 from .run_state import inf_norm, solve
 from .settings import EXACT_CROSSING_STALL, SNAP_DISTANCE
-from ..bounded_work import checkpoint
+from .. import bounded_work
 
 
 def through_linkage_limit(run, y, s, s_end):
@@ -79,10 +79,7 @@ def leave_crossing(run, y, s, s_end):
     ``y`` is at no crossing or no flow rests on a minimum a move away.  Frozen
     1e-9, 1e-7, then ``linkage_offset`` past s (where the minimum is gone, the flow
     from it moves).  (bench_round_commands seed 1, streams 1 and 7, seed 0 stream 8:
-    the reference's jumps there, where the tracker gave up at a 'linkage limit'.)
-    Which half-branch the released mechanism takes turns on the departure's last 1e-7
-    rad (seed 0 stream 8: the reference's departure, 6e-9 rad from flat, took the
-    other): ambiguous where another one lands elsewhere."""
+    the reference's jumps there, where the tracker gave up at a 'linkage limit'.)"""
     ways = getattr(run.problem, 'crossing_ways', None)
     if (s >= s_end or ways is None or not run.moves(y, s)
             or not run.linkage_limit(y, s)):
@@ -90,20 +87,50 @@ def leave_crossing(run, y, s, s_end):
     leaving = ways(y, s)
     if leaving is None:
         return None
+    stalled = True
     for offset in (1e-9, 1e-7, run.settings.linkage_offset):
         s_land = min(s + offset, s_end)
         run.crossing_alternatives = []
         landing = slide(run, y, s_land, rigid_first=True)
         if landing is not None and run.separation(landing, y) > run.settings.passage_radius:
-            others = run.crossing_alternatives + [state for _, state in leaving]
-            ambiguous = (ambiguity.lands_elsewhere(run, others, landing, s_land)
-                         or ambiguity.mirror_lands_too(run, y, landing, s_land))
-            at_event, s_at = landing_at_event(run, landing, s_land, s)
-            return landing, s_land, Event(kind=BRANCH_POINT, s=s, state=y, landing_s=s_at,
-                                          landing=at_event, ambiguous=ambiguous)
+            return _off_crossing(run, y, s, landing, s_land, leaving)
+        stalled = stalled and landing is None
         if s_land >= s_end:
             break
+    s_land = min(s + 1e-9, s_end)
+    if not stalled or run.newton(y, s_land) is not None:
+        # the flow rests next to y, or an equilibrium goes on from it (the steps stopped
+        # unresolved next to the flat module: seed 1 stream 12, 2.3e-6 in s before its
+        # fold): no jump off the crossing here (H30, e506e01)
+        return None
+    return _off_the_ways_out(run, y, s, s_land, leaving)
+
+
+def _off_the_ways_out(run, y, s, s_land, leaving):
+    """Where the departure's own flow does not move at all and no equilibrium goes on:
+    kept mirror-symmetric to the last bit (the Nehalem kernel's, bench_round_commands seed
+    1 stream 1) it stalls where the rigid projection is undefined; the released mechanism
+    leaves along the steepest way out (a mirror pair: either, ambiguous), as a flow that
+    reaches a crossing does (H30, a7a68a7)."""
+    for _, state in sorted(leaving, key=lambda way: -way[0]):
+        run.crossing_alternatives = []
+        landing = slide(run, state, s_land, rigid_first=True)
+        if landing is not None and run.separation(landing, y) > run.settings.passage_radius:
+            return _off_crossing(run, y, s, landing, s_land, leaving)
     return None
+
+
+def _off_crossing(run, y, s, landing, s_land, leaving):
+    """The jump off the crossing at (y, s) onto ``landing``: (landing, s_land, branch
+    point event).  Which half-branch the released mechanism takes turns on the
+    departure's last 1e-7 rad (seed 0 stream 8: the reference's departure, 6e-9 rad from
+    flat, took the other): ambiguous where another one lands elsewhere."""
+    others = run.crossing_alternatives + [state for _, state in leaving]
+    ambiguous = (ambiguity.lands_elsewhere(run, others, landing, s_land)
+                 or ambiguity.mirror_lands_too(run, y, landing, s_land))
+    at_event, s_at = landing_at_event(run, landing, s_land, s)
+    return landing, s_land, Event(kind=BRANCH_POINT, s=s, state=y, landing_s=s_at,
+                                  landing=at_event, ambiguous=ambiguous)
 
 
 def end_next_to_crossing(run, y, s_end):
@@ -270,7 +297,7 @@ def nearest_minimum(run, y, s):
     for direction in _search_directions(run):
         for amplitude in (1e-5, 1e-4, 1e-3, 1e-2, 1e-1):
             for sign in (1.0, -1.0):
-                checkpoint()
+                bounded_work.checkpoint()
                 moved = y + sign * amplitude * direction
                 try:
                     found = run.newton(problem.project(moved, s), s)

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import indicators
-from .correctors import arc_point
+from .correctors import arc_point, pinned_newton
+from .results import BRANCH_POINT
 
 
 class Lost(Exception):
@@ -105,12 +106,33 @@ def critical_point(run, test, point, a, b):
 
 def crossing_on_path(run, y, s, tangent, s_bad):
     """The critical point where lambda_min crosses zero between the verified (y, s)
-    and the verified indefinite state at s_bad (natural parametrisation)."""
+    and the verified indefinite state at s_bad (natural parametrisation).
+
+    A probe is Newton from the prediction; where that fails or lands far next to a
+    branch point (the critical mode orthogonal to F_s at the start), the bordered
+    corrector (:func:`.correctors.pinned_newton`).  There Newton's update along the soft
+    mode is rounding over lambda_min: within ~1.5e-9 in s of the perfect N = 3 chord
+    ramp's branch point every natural probe was lost, and the event was located on
+    arclength points instead, 1.4e-9 .. 3.7e-9 in s off on the Sandybridge and Haswell
+    BLAS kernels (H30).  Not next to an imperfect one: its soft mode is not a symmetry's,
+    and pinned states there, equilibria to the residual test only because lambda_min is
+    ~1e-11 of lambda_max, made false folds (the 1e-9-imperfect N = 5 paper neck)."""
+    pinning = []
+
     def point(t):
-        found = run.newton(y + (t - s) * tangent, t)
-        if found is None or run.step_norm(found - y - (t - s) * tangent) > \
-                0.5 * abs(t - s) * run.step_norm(tangent) + run.settings.same_state_tol:
-            raise Lost
+        predicted = y + (t - s) * tangent
+        near = 0.5 * abs(t - s) * run.step_norm(tangent) + run.settings.same_state_tol
+        found = run.newton(predicted, t)
+        if found is None or run.step_norm(found - predicted) > near:
+            if not pinning:
+                pinning.append(indicators.kind(run, y, s, run.critical(y, s)[1]) == BRANCH_POINT)
+            # (nor next to a flat module: there the Jacobian's singular direction is its
+            # chord's, and the lost probes are unresolved points, which must not bracket
+            # a fold: bench_round_commands seed 1 stream 12; H30, e506e01)
+            found = (pinned_newton(run, predicted, t)
+                     if pinning[0] and not run.linkage_limit(predicted, t) else None)
+            if found is None or run.step_norm(found - predicted) > near:
+                raise Lost
         return found, t
 
     return critical_point(run, lambda t: run.margin(*point(t)), point, s, s_bad)

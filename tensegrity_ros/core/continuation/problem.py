@@ -34,6 +34,8 @@ class PathProblem(Protocol):
     and ``mirror(y, s)`` (the state's mirror image, or None where the problem has no
     mirror symmetry at s).  Linkage limits (:mod:`.linkage_limits`) use
     ``linkage_limit(y, s)`` (a description, '' where none) and ``crossing_rounding``.
+    ``motion(y, s, dy)`` (optional) measures a step for the step bound (default: the
+    weighted state norm; a neck: its largest node displacement).
     """
 
     size: int
@@ -65,6 +67,8 @@ class SubPath:
         for name in ('state_weights', 'canonical'):
             if hasattr(problem, name):
                 setattr(self, name, getattr(problem, name))
+        if hasattr(problem, 'motion'):
+            self.motion = lambda y, t, dy: problem.motion(y, self.at(t), dy)
         if hasattr(problem, 'on_constraints'):
             self.on_constraints = lambda y, t: problem.on_constraints(y, self.at(t))
         if hasattr(problem, 'rigid_descent'):

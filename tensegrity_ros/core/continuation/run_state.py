@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from ..bounded_work import checkpoint
+from .. import bounded_work
 from .problem import SubPath
 from .settings import UNRESOLVED_UPDATE
 from .step_rules import energy_consistent, forward_rate, positive_definite
@@ -59,6 +59,7 @@ class RunState:
         #: point by the normal form (off in the tracker that follows the branch away for it).
         self.normal_form_end = True
         self.normal_form_tried = None   # the s it was tried at (once per state)
+        self.normal_form_failed = None  # lambda_min where it last failed (this branch)
         #: Set on the run that follows a minimum onto a landing
         #: (:func:`.lander.leads_to`): its own landings are not checked that way again.
         self.following_onto_landing = False
@@ -86,6 +87,13 @@ class RunState:
     def step_norm(self, v):
         """Size of a state change for the step limits (weighted max norm)."""
         return inf_norm(v if self.weights is None else self.weights * v)
+
+    def motion(self, y, s, dy):
+        """How far a state change dy moves the mechanism at (y, s), for the step bound:
+        the problem's optional ``motion`` (a neck: its largest node displacement), else
+        the weighted state norm."""
+        measure = getattr(self.problem, 'motion', None)
+        return self.step_norm(dy) if measure is None else measure(y, s, dy)
 
     def separation(self, a, b):
         """Distance of two states (weighted), with angles compared modulo 2 pi."""
@@ -156,7 +164,7 @@ class RunState:
 
     def margin(self, y, s):
         """The test function lambda_min in scale units (its root is the critical point)."""
-        checkpoint()                    # every probe of a localisation
+        bounded_work.checkpoint()    # every probe of a localisation
         return self.eigenvalues(y, s)[0] / self.scale
 
     def critical(self, y, s, reference=None):

@@ -11,6 +11,7 @@ The two explicit examples are soft necks (k ~ 10 N/m) whose branch-point landing
 load: it was reported there (0.011 and 0.08 rad from the rest point at the event's load).
 """
 import numpy as np
+import pytest
 from scipy.optimize import brentq
 from hypothesis import Phase, event, example, given, settings, strategies as st
 
@@ -19,6 +20,9 @@ from tensegrity_ros.core.continuation import TrackerSettings
 from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
 from tensegrity_ros.core.start_state import upright_guess
 from tensegrity_ros.core.tolerances import verified_minimum
+
+#: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
+pytestmark = pytest.mark.numerics
 
 
 def neck(n, rho, length, k, load):

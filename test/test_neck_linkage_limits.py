@@ -19,6 +19,9 @@ from tensegrity_ros.core.simulator import Simulator
 from reference_paths import (ModuleSystem, NeckSystem, angle_distance, critical_solve,
                              flow_to_rest, quasi_static_path)
 
+#: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
+pytestmark = pytest.mark.numerics
+
 
 def paper_neck(n, rho=0.75):
     return Stack(tuple(ModuleParams.paper(rho) for _ in range(n)))

@@ -41,6 +41,10 @@ from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 
 from node_spring_flow import NodeSpringNeck, released_past_a_branch_point, rest_point
 
+#: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
+pytestmark = pytest.mark.numerics
+
+
 N, HEAD, RHO_START, RHO_END = 3, -5.0, 0.9, 0.2
 #: Rigid lengths as springs of this stiffness (N/m; 1e4 times the module springs).
 STIFFNESS = 1e6

@@ -152,6 +152,7 @@ def compare_module(start, end, theta):
 
 # -- the issue's repros, by name --------------------------------------------------------
 
+@pytest.mark.numerics
 @pytest.mark.parametrize('f3', [5.001, 5.01, 5.000001])
 def test_issue_load_asymmetry_near_c1(f3):
     """`tensegrity track --F3 <f3> --F4 5 --rho 0.5 --to-rho 0.1 --theta1 -1 --theta2 -1`:
@@ -160,11 +161,13 @@ def test_issue_load_asymmetry_near_c1(f3):
     assert len(ref.jumps) == 1 and ref.jumps[0].kind == 'fold'
 
 
+@pytest.mark.numerics
 @pytest.mark.parametrize('ka', [100.01, 100.0 * (1.0 + 1e-9)])
 def test_issue_stiffness_asymmetry_near_c1(ka):
     compare_module(fig8(0.5, ka=ka), fig8(0.1, ka=ka), [-1.0, -1.0])
 
 
+@pytest.mark.numerics
 def test_issue_fold_start_moving_away_stays_on_the_lower_branch():
     """`--rho 0.8745334409192281 --to-rho 0.5` from (-0.29676, -0.29676): 1e-9 inside C2."""
     got, ref = compare_module(fig8(0.8745334409192281), fig8(0.5), [-0.29676, -0.29676])
@@ -181,6 +184,7 @@ def fold_rho_inside(lower=True):
     return math.nextafter(rho, 0.0) if lower else rho
 
 
+@pytest.mark.numerics
 def test_start_exactly_on_the_fold_moving_away_stays():
     rho = fold_rho_inside()
     start = settle_reference(ModuleSystem(fig8(rho)), [-0.2967, -0.2967]).state
@@ -188,6 +192,7 @@ def test_start_exactly_on_the_fold_moving_away_stays():
     assert ref.jumps == []
 
 
+@pytest.mark.numerics
 def test_start_1e6_inside_the_fold_moving_away_stays():
     got, ref = compare_module(fig8(0.874533441919229 - 1e-6), fig8(0.5), [-0.2967, -0.2967])
     assert ref.jumps == []
@@ -197,6 +202,7 @@ def test_start_1e6_inside_the_fold_moving_away_stays():
     ([-0.0501, -0.0501], fig8(0.5)),                      # between the two stable branches
     ([-2.9918, -0.0498], fig8(0.5)),
 ])
+@pytest.mark.numerics
 def test_settle_started_on_a_saddle_lands_on_the_lower_energy_minimum(theta, params):
     system = ModuleSystem(params)
     from scipy.optimize import root
@@ -213,6 +219,7 @@ C1_RHO = 0.1551013762561726      # eq. (15) of the paper at F = 5 (as test_cli, 
 C2_RHO = 0.874533441919229       # eq. (16)
 
 
+@pytest.mark.numerics
 def test_reference_finds_fig8a_c1_and_c2():
     down = quasi_static_path(ModuleSystem(fig8(0.5), fig8(0.1)), [-1.0, -1.0])
     (c1,) = down.jumps
@@ -370,6 +377,7 @@ def test_paths_starting_on_a_fold(batch):
 ASYMMETRIES = [('f3y', 5.0), ('ka', 100.0), ('L2', 1.0), ('f3x', 5.0)]
 
 
+@pytest.mark.numerics
 @pytest.mark.parametrize('eps', [1e-2, -1e-4, 1e-6, 1e-9])
 @pytest.mark.parametrize('name, base', ASYMMETRIES)
 def test_asymmetries_around_c1(name, base, eps):
@@ -540,6 +548,7 @@ def test_random_neck_paths(n, seed):
     random_neck_path(500 + seed, n)
 
 
+@pytest.mark.numerics
 def test_neck_n2_random_rho_path():
     rng = np.random.default_rng(31)
     start = Stack((random_module(rng, 1.0).with_(rho=0.7), random_module(rng, 1.0).with_(rho=0.7)))
@@ -547,6 +556,7 @@ def test_neck_n2_random_rho_path():
     compare_neck(start, end, np.full((2, 2), 0.8))
 
 
+@pytest.mark.numerics
 def test_reference_flow_goes_on_past_a_flat_module_at_its_linkage_limit():
     """N = 3 unloaded paper neck, module 0 at rho 1.2 -> 1.3 (flat where rho0 + rho1 =
     L1 + L2, rho0 = 1.25), frozen at s = 0.50390625: released nearly flat on the upright
@@ -591,6 +601,7 @@ def fold_left_neck(fraction):
                               for m, r, t in zip(modules, FOLD_LEFT_RHOS, FOLD_LEFT_TO)))
 
 
+@pytest.mark.numerics
 def test_a_neck_command_from_a_state_left_at_a_fold_jumps_at_its_start():
     """A state within what Newton resolves of a fold (its last update 1.4e-5 rad, halving):
     the reference's own fold equations {KKT = 0, det = 0}, solved from it, put the fold
@@ -647,6 +658,7 @@ def upright(n, rho):
     return np.tile(top, (n, 1))
 
 
+@pytest.mark.numerics
 def test_n3_nearly_symmetric_neck_head_load_folds_where_the_tracker_says():
     """The issue's N = 3 upright neck, m0 ka = 100.0000001, head load 0 -> -40 N per top
     node: it buckles continuously (s ~ 0.1713, no event) and folds at s = 0.2921059.
@@ -701,6 +713,7 @@ NEAR_SYMMETRIC_CASES = [(ramp, kind, eps) for ramp in ('head', 'rho') for kind i
                         for eps in NEAR_SYMMETRIC_EPS]
 
 
+@pytest.mark.numerics
 @pytest.mark.parametrize('ramp, kind, eps', NEAR_SYMMETRIC_CASES)
 def test_near_symmetric_one_module_neck(ramp, kind, eps):
     """N = 1 (the neck tracker on one module): the head load folds it, the chord ramp
@@ -717,6 +730,7 @@ if os.environ.get('FULL_NECKS') == '1':
     NEAR_SYMMETRIC_NECKS = [(n, *case) for n in (2, 3) for case in NEAR_SYMMETRIC_CASES]
 
 
+@pytest.mark.numerics
 @pytest.mark.parametrize('n, ramp, kind, eps', NEAR_SYMMETRIC_NECKS)
 def test_near_symmetric_neck(n, ramp, kind, eps):
     """Paper modules stacked, one tiny asymmetry: the same jumps as the reference (the
@@ -726,6 +740,7 @@ def test_near_symmetric_neck(n, ramp, kind, eps):
 
 # -- perfect (exactly symmetric) modules and necks: branch points passed continuously ------------
 
+@pytest.mark.numerics
 @pytest.mark.parametrize('rho_end', [0.75, 0.5])
 def test_perfect_module_passes_its_flat_pitchfork_like_the_reference(rho_end):
     """The unloaded paper module from rho 1.3 down through rho = L = 1: its flat minimum
@@ -757,6 +772,7 @@ def test_perfect_module_passes_its_flat_pitchfork_like_the_reference(rho_end):
 PERFECT_NECKS = [(2, 'head'), (3, 'head'), (2, 'rho'), (3, 'rho')]
 
 
+@pytest.mark.numerics
 @pytest.mark.parametrize('n, ramp', PERFECT_NECKS)
 def test_perfect_neck_against_the_reference(n, ramp):
     """Exactly symmetric necks: the same jumps and the same continuous passages (the
@@ -787,6 +803,7 @@ def neck_yaml(rhos, head=-1.0):
                   base.with_(rho=rhos[2], f3y=head, f4y=head)))
 
 
+@pytest.mark.numerics
 def test_neck_fold_next_to_a_flat_crossing_is_a_jump():
     """bench_round_commands seed 0 stream 7, ``joint_commands {0: 0.11, 1: 0.15, 2: 0.06}``
     (rhos 0.10, 0.15, 0.12 -> 0.11, 0.15, 0.06).  At s = 0.5 module 1 reaches its flat
@@ -823,6 +840,7 @@ def test_neck_fold_next_to_a_flat_crossing_is_a_jump():
                 and angle_distance(star, y) < 1e-3)
 
 
+@pytest.mark.numerics
 def test_neck_minimum_reaching_a_flat_crossing_at_the_command_end_is_no_jump():
     """bench_round_commands seed 0 stream 8, ``joint_commands {0: 0.13, 1: 0.12, 2: 0.15}``
     under a 2 N head (rate-limited: rhos 0.06, 0.15, 0.12 -> 0.1125, 0.1275, 0.1425, the
@@ -842,6 +860,7 @@ def test_neck_minimum_reaching_a_flat_crossing_at_the_command_end_is_no_jump():
     assert np.max(np.abs(ref.final[:2])) < 1e-6
 
 
+@pytest.mark.numerics
 def test_neck_minimum_ending_resolved_next_to_a_flat_crossing_is_no_jump():
     """The same command as the stream ran on after h13's change (its earlier commands
     left the rhos different in the last bits): rho0 + rho1 5.6e-16 m short of L1 + L2 at
@@ -867,6 +886,7 @@ def test_neck_minimum_ending_resolved_next_to_a_flat_crossing_is_no_jump():
     assert system.stability(ref.final, 1.0)[0][0] > 0
 
 
+@pytest.mark.numerics
 def test_neck_command_ending_on_a_flat_crossing_snaps():
     """bench_round_commands seed 0 stream 8, ``joint_commands {0: 0.09, 1: 0.12, 2: 0.12}``
     under a 0.5 N head (rhos 0.11, 0.085, 0.08 -> 0.09, 0.12, 0.12): after a fold at
@@ -903,6 +923,7 @@ def tracked_and_reference(start, end, state):
     return held, got, system, quasi_static_path(system, np.ravel(held.theta))
 
 
+@pytest.mark.numerics
 def test_neck_command_ending_on_an_exact_crossing_stalled_outside_its_radius_snaps():
     """bench_round_commands seed 2 stream 11, config/neck.yaml as it starts and
     ``joint_commands {0: 0.07, 1: 0.12, 2: 0.12}``: a fold at s = 0.8173, then module 1
@@ -933,6 +954,7 @@ def test_neck_command_ending_on_an_exact_crossing_stalled_outside_its_radius_sna
     assert_same_neck_path(system, on, ref_on)
 
 
+@pytest.mark.numerics
 def test_neck_jump_from_a_flat_module_steps_off_to_a_state_nearby():
     """bench_round_commands seed 0 stream 11, ``joint_commands {0: 0.07, 1: 0.1, 2: 0.11}``
     from where the stream's 4th command stopped at a linkage limit: module 0 flat, its
@@ -956,6 +978,7 @@ def test_neck_jump_from_a_flat_module_steps_off_to_a_state_nearby():
         assert landing < departure, (jump.s, landing, departure)
 
 
+@pytest.mark.numerics
 def test_neck_landing_past_a_module_near_flat_is_the_rigid_mechanism_s():
     """bench_round_commands seed 0 stream 11, head load -10 -> 0.5 N on module 0 at
     (-pi/2, -pi/2) (rho = 0.06, its rods parallel): at s = 0.99907929 both rods swing
@@ -972,6 +995,7 @@ def test_neck_landing_past_a_module_near_flat_is_the_rigid_mechanism_s():
     assert angle_distance(np.ravel(got.final.theta)[:2], [np.pi / 2, np.pi / 2]) < 1e-6
 
 
+@pytest.mark.numerics
 def test_neck_jump_off_a_mirror_symmetric_state_says_its_mirror_image_lands_as_well():
     """bench_round_commands seed 3 stream 10, ``joint_commands {0: 0.15, 1: 0.13, 2: 0.05}``
     from a linkage-limit stop: module 0 flat, the neck and its state mirror-symmetric.
@@ -1000,6 +1024,7 @@ def test_neck_jump_off_a_mirror_symmetric_state_says_its_mirror_image_lands_as_w
     assert system.energy(image, 1.0) == pytest.approx(system.energy(landing, 1.0), rel=1e-12)
 
 
+@pytest.mark.numerics
 def test_neck_driven_onto_a_flat_crossing_jumps_off_it_as_the_reference_does():
     """bench_round_commands seed 1 stream 1, ``joint_commands {0: 0.11, 1: 0.15, 2: 0.07}``
     under a -10 N head load: at s = 0.6 module 0 reaches its flat crossing (rho0 + rho1 =
@@ -1024,6 +1049,7 @@ def test_neck_driven_onto_a_flat_crossing_jumps_off_it_as_the_reference_does():
     assert angle_distance(final, ref.final) <= FINAL_TOL, (final, ref.final)
 
 
+@pytest.mark.numerics
 def test_neck_jump_off_a_flat_crossing_takes_the_arm_its_departure_leans_to():
     """bench_round_commands seed 0 stream 8, ``joint_commands {0: 0.13, 1: 0.12, 2: 0.15}``
     under a -2 N head load: at s = 0.75 module 0 reaches its flat crossing with no minimum
@@ -1047,6 +1073,7 @@ def test_neck_jump_off_a_flat_crossing_takes_the_arm_its_departure_leans_to():
     assert angle_distance(np.ravel(got.final.theta), on.final) <= FINAL_TOL
 
 
+@pytest.mark.numerics
 def test_neck_fold_next_to_a_flat_module_is_not_placed_on_unresolved_points():
     """bench_round_commands seed 1 stream 12, head load -2 -> -10 N from a state a
     linkage-limit stop left (module 0 flat, chord force 7e7 N, lambda_max 4.5e8).
@@ -1077,6 +1104,7 @@ def test_neck_fold_next_to_a_flat_module_is_not_placed_on_unresolved_points():
         assert s_last < s_fold and got.final.stable
 
 
+@pytest.mark.numerics
 def test_neck_buckled_back_onto_its_symmetric_branch_by_a_hair_is_no_jump():
     """bench_round_commands seed 0 stream 13, ``joint_commands {0: 0.12, 1: 0.1, 2: 0.09}``
     from the buckled state the stream left (module 1 bent, head load -5 N): the buckled

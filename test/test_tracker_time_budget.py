@@ -12,12 +12,17 @@ must end at most one check point's work past its budget (``GRANULARITY`` evaluat
 failed, on a verified stable state (the start where nothing more was verified).
 """
 import numpy as np
+import pytest
 
 from tensegrity_ros.core import ModuleParams, TrackerSettings, equilibria, settle
 from tensegrity_ros.core import continuation
 from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
 from tensegrity_ros.core.start_state import upright_guess
 from tensegrity_ros.core.tracking import ModulePath
+
+#: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
+pytestmark = pytest.mark.numerics
+
 
 #: Evaluations a run may go on past its budget: one check point's work (at most 12 seen
 #: in these runs; an arclength corrector is up to 12 Newton iterations of 3 evaluations).

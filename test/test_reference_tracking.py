@@ -1000,10 +1000,15 @@ def test_neck_jump_off_a_mirror_symmetric_state_says_its_mirror_image_lands_as_w
     """bench_round_commands seed 3 stream 10, ``joint_commands {0: 0.15, 1: 0.13, 2: 0.05}``
     from a linkage-limit stop: module 0 flat, the neck and its state mirror-symmetric.
     At s = 1e-13 it folds onto a state that is not its own mirror image; which of the
-    two it lands on turned on the departure's last bits (a projection fix swapped it),
-    and the reference's flows do not rest there (NoRest).  The jump is flagged
-    ambiguous, and the landing and its mirror image are both stable equilibria of the
-    reference model at the jump's parameters, of one energy."""
+    two it lands on turned on the departure's last bits (a projection fix swapped it;
+    the Sandybridge BLAS kernel lands on the mirror image of SkylakeX's), and the
+    reference's flows do not rest there (NoRest).  The jump is flagged ambiguous, and the
+    landing and its mirror image are both stable equilibria of the reference model at
+    the jump's parameters, of one energy.  (Whether it is called a fold or a branch point
+    turns on rounding too: the state is mirror-symmetric.)  On the Haswell and Nehalem
+    kernels the tracker reported no jump at all: its first arclength step from the start
+    went back in s, put a branch point at s = -6.2e-4, before the command, and went on
+    from there silently."""
     start = neck_yaml((0.11399999999999863, 0.1259999999999968, 0.08400000000000092),
                       head=-0.5)
     end = neck_yaml((0.15, 0.13, 0.05), head=-0.5)

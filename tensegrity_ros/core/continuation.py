@@ -778,7 +778,16 @@ class _Tracker:
             test = lambda hh: self.margin(*point(hh))                          # noqa: E731
         else:                       # the branch turned back in s while staying stable
             test = lambda hh: self.curve_tangent(*point(hh), direction)[-1]   # noqa: E731
-        return 'event', self.critical_point(test, point, 0.0, h)
+        found = self.critical_point(test, point, 0.0, h)
+        if found is not None and found[1] < s:
+            # the arc went back in s before its critical point: that one is not ahead of
+            # (y, s) on the command (a start within rounding of a fold: the Haswell
+            # kernel's arc from bench_round_commands seed 3 stream 10's mirror-symmetric
+            # start put a branch point at s = -6.2e-4 and went on from there silently;
+            # SkylakeX's stepped 1e-13 forward first and found the fold there).  Shorter
+            # steps decide, down to the state itself (end_at_rounding).
+            return None
+        return 'event', found
 
     def crossing_on_path(self, y, s, tangent, s_bad):
         """The critical point where lambda_min crosses zero between the verified (y, s)

@@ -183,15 +183,23 @@ def test_a_neck_command_from_just_past_its_passage_back_towards_it_ends_ok():
     pins such a state along the soft mode only to ~1e-6, above the corrector's slack).
     The same from -10 N, where the steps reach 3e-12 in s short of the end (certified by
     the linear law) and then fail: it then landed on a false fold, recursively, > 300 s.
-    The square root holds here only to the noise floor, hence 25 %: 1e-10 past,
+    The square root holds here only to the noise floor, hence 50 %: 1e-10 past,
     lambda_min is 6e-12 of lambda_max, and Newton started on the one-command state itself
     moves it along the soft mode by -30 .. +12 % of the buckling amplitude (lambda_min
-    by -50 .. +25 %).  From -10 N to 5e-11 and 3e-11 past, the steps stop 1.8e-10 in s
-    short of the end (every step 'far', and every run away from the branch point too):
-    the command then ran for minutes (landings on a false fold, recursively; the node
+    by -50 .. +25 %): where the soft component lands within that is rounding (0.011 ..
+    0.27 of the amplitude seen over these ends on the Haswell, Sandybridge, Nehalem and
+    SkylakeX BLAS kernels; 25 % failed once, Sandybridge 5e-11).  The unbuckled state
+    lies at 1, the mirror image at 2.  From -10 N to 5e-11 and 3e-11 past, the steps
+    stop 1.8e-10 in s short of the end (every step 'far', and every run away from the
+    branch point too): the command then ran for minutes (landings on a false fold, recursively; the node
     gave up after its 60 s work limit); the branch point is now found from the last
     state of the approach that passed the margin test 100-fold (a time budget here makes
-    a regression fail, not hang)."""
+    a regression fail, not hang).  That far state's linear law put s* 3.5e-11 in s off
+    on the Haswell BLAS kernel (lambda_min of the near state is known to a few per cent
+    only), and the end 3e-11 short (6.5e-11 in s) was not certified: the command then
+    landed on a false fold and ended 'failed' ('the start state is not a stable
+    equilibrium', a nested follower's); s* now comes from the branch point's own
+    equations (to ~1e-14 in s), on every kernel."""
     start = neck(3, 0.6, 1.0, 100.0, 0.0)
     first = settle_stack(start, upright_guess(start.modules))
     whole = track_stack(start, at_load(start, -10.0), first)
@@ -209,7 +217,7 @@ def test_a_neck_command_from_just_past_its_passage_back_towards_it_ends_ok():
         assert result.final.stable and result.jumps == () and result.passages == ()
         assert (result.final.theta - passage.theta).ravel() @ (far - passage.theta).ravel() > 0
         deviation = on_the_square_root(result.final.theta, passage.theta, far, back_to)
-        assert deviation < 0.25, (past, back_to, deviation)    # 0.067 .. 0.016, 0.096, 0.20
+        assert deviation < 0.5, (past, back_to, deviation)     # 0.011 .. 0.27
 
 
 def test_a_neck_command_from_just_past_its_passage_back_through_it_ends_unbuckled():

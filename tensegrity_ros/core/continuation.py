@@ -1385,6 +1385,14 @@ class _Tracker:
                 ratio = math.sqrt((s_star - s) / (s_star - s_far))     # of y's amplitude
                 y_star = (y - ratio * far_state) / (1.0 - ratio)
             if s < s_star and s_end < s_star:
+                # lam is y's, whose soft component Newton pins only to ~1e-6, so the linear
+                # law put s* 3.5e-11 in s off on the Haswell kernel (6e-11 .. 1e-10 from
+                # other states), 2e-12 on SkylakeX: a command ending 6.5e-11 short of it
+                # was not certified there; the branch point's own equations put it to ~1e-14
+                solved = self.branch_point(y_star, s_star)
+                if solved is not None and s_end < solved[1] \
+                        and abs(solved[1] - s_star) <= 0.5 * (s_star - s):
+                    y_star, s_star = solved
                 found = self.buckled_at(s_star, y_star, far_state, s_far, s_end)
             elif s < s_star and not remembered:
                 s_end = min(s_end, 2.0 * s_star - s)   # as far before s* as y was past it
@@ -1393,6 +1401,49 @@ class _Tracker:
             self.certificate = certificate
             return None
         return found, s_end
+
+    def branch_point(self, y, s):
+        """(y*, s*) of the branch point next to (y, s), to rounding, or ``None``: Newton
+        (finite-difference Jacobian) on the regular extended system of DESIGN.md section
+        3, {F(y, s) + beta u = 0, lambda_min(y, s) = 0, u(y, s) . F_s(y, s) = 0}, u the
+        Jacobian's left singular vector of its smallest singular value (u0, the start's,
+        in the unfolding term).  Regular at a simple branch point: lambda_min fixes s*,
+        u . F_s the state along the critical mode (along which lambda_min is flat at a
+        pitchfork), beta the unfolding.  Accepted where beta and the residual vanish to
+        the tolerance and the solution stays within ``passage_radius`` of y."""
+        problem, n = self.problem, self.problem.size
+        try:
+            u0 = np.linalg.svd(problem.jacobian(y, s))[0][:, -1]
+        except np.linalg.LinAlgError:
+            return None
+
+        def system(z):
+            x, t = z[:n], z[n]
+            u = np.linalg.svd(problem.jacobian(x, t))[0][:, -1]
+            return np.concatenate([problem.residual(x, t) + z[n + 1] * u0,
+                                   [self.eigenvalues(x, t)[0] / self.scale,
+                                    u @ problem.residual_s(x, t)]])
+
+        z = np.append(np.asarray(y, dtype=float), [s, 0.0])
+        h = 1e-7
+        try:
+            for _ in range(self.settings.newton_iterations):
+                checkpoint()
+                f = system(z)
+                jac = np.column_stack([(system(z + h * e) - f) / h for e in np.eye(n + 2)])
+                delta = np.linalg.solve(jac, f)
+                if not np.all(np.isfinite(delta)):
+                    return None
+                z = z - delta
+                if _inf_norm(delta) <= 1e-14 * (1.0 + _inf_norm(z)):
+                    break
+        except np.linalg.LinAlgError:
+            return None
+        x, t = z[:n], float(z[n])
+        if (not self.residual_ok(x, t) or self.separation(x, y) > self.settings.passage_radius
+                or abs(self.eigenvalues(x, t)[0]) > self.settings.critical_tol * self.scale):
+            return None
+        return x, t
 
     def unbuckled_at(self, s_star, y_star, rate, s_end):
         """The unbuckled minimum at s_end, just beyond the branch point (s*, y*) that a

@@ -8,8 +8,13 @@ budget of its own, and landed again).  Each test runs a command unbounded, then 
 budgets spread over its whole work.  Deterministic: the clock is the number of the
 path's evaluations so far (residual, Jacobian, energy, eigenvalues, flow velocity ...),
 so a budget is an amount of work on any machine and no test times anything.  A run
-must end at most one check point's work past its budget (``GRANULARITY`` evaluations),
-failed, on a verified stable state (the start where nothing more was verified).
+must end failed, on a verified stable state (the start where nothing more was verified),
+at the first check point past its budget: exactly there, counted in evaluations, and
+the check points are recorded so that this needs no allowance for rounding.  (Which
+code runs between two check points, so how many evaluations a run's last one comes
+after its budget, does depend on rounding: an allowance of 50 held on SkylakeX, and
+the Haswell kernel's run overshot one budget by 59.)  The work between two check
+points is bounded too, by GRANULARITY (see there).
 """
 import numpy as np
 import pytest
@@ -24,9 +29,14 @@ from tensegrity_ros.core.tracking import ModulePath
 pytestmark = pytest.mark.numerics
 
 
-#: Evaluations a run may go on past its budget: one check point's work (at most 12 seen
-#: in these runs; an arclength corrector is up to 12 Newton iterations of 3 evaluations).
-GRANULARITY = 50
+#: Most evaluations between two check points (a lost check point, a loop without one,
+#: would run up thousands).  A check point is passed once per pass of a tracker's loop
+#: and per probe of a localisation, so a stretch is at most one pass without a probe:
+#: the tangent (2) and rate (1), a step's Newton (<= 25) and checks (5), then a probe's
+#: Newton and bordered Newton (<= 50) or an arclength step (<= 46), or a nested run's
+#: start (<= 28), ~110; these runs meet 112 at most (Haswell; Sandybridge 94, Nehalem
+#: 44, SkylakeX 21: which of those a pass runs turns on rounding), hence 200.
+GRANULARITY = 200
 
 COUNTED = ('residual', 'jacobian', 'residual_s', 'energy', 'energy_s', 'eigenvalues',
            'stability', 'descent', 'project')
@@ -47,26 +57,57 @@ def counting(path_class):
     return type('Counting' + path_class.__name__, (path_class,), namespace)
 
 
-def bounded_runs(path, y0, certificate=''):
+class CheckPoints:
+    """The tracker's check points, recorded: the path's evaluation count at each, per run."""
+
+    def __init__(self, monkeypatch, path):
+        self.runs = []
+        real = continuation.checkpoint
+
+        def recorded():
+            self.runs[-1].append(path.evaluations)
+            real()
+        monkeypatch.setattr(continuation, 'checkpoint', recorded)
+
+    def track(self, path, y0, settings, certificate):
+        """(result, evaluations used) of one run, its check points recorded."""
+        path.evaluations = 0
+        self.runs.append([])
+        result = continuation.track(path, y0, settings, certificate)
+        return result, path.evaluations
+
+
+def bounded_runs(path, y0, monkeypatch, certificate=''):
     """The unbounded run, then (budget, result, evaluations used) for budgets spread over
-    0 .. 1.2 times its work (deadlines in its steps, localisations, landings, followers)."""
-    path.evaluations = 0
-    whole = continuation.track(path, y0, certificate=certificate)
-    total = path.evaluations
+    0 .. 1.2 times its work (deadlines in its steps, localisations, landings, followers);
+    each bounded run checked to have stopped at its first check point past its budget
+    (:func:`check_stopped`), and no two check points more than GRANULARITY apart."""
+    points = CheckPoints(monkeypatch, path)
+    whole, total = points.track(path, y0, TrackerSettings(), certificate)
     runs = []
     for budget in sorted({int(total * f) for f in np.linspace(0.0, 1.2, 49)}):
-        path.evaluations = 0
         settings = TrackerSettings(time_budget=budget, clock=lambda: path.evaluations)
-        result = continuation.track(path, y0, settings, certificate)
-        runs.append((budget, result, path.evaluations))
+        result, used = points.track(path, y0, settings, certificate)
+        check_stopped(budget, result, used, points.runs[-1])
+        runs.append((budget, result, used))
+    gaps = [b - a for counts in points.runs for a, b in zip([0] + counts, counts)]
+    assert max(gaps) <= GRANULARITY, max(gaps)
     return whole, runs
 
 
+def check_stopped(budget, result, used, counts):
+    """The run passed no check point past its budget and ran to its end, or stopped at
+    the first one: exactly there, no evaluation after it."""
+    past = [count for count in counts if count > budget]
+    if result.status == 'ok' and not past:
+        return
+    assert past and used == past[0], (budget, used, past[:1])
+
+
 def check_bounded(runs, whole):
-    """Each run ends within its budget plus one check point, or is the whole run."""
+    """Each run ends as the whole run did, or failed on its budget, no further on."""
     assert whole.status == 'ok'
     for budget, result, used in runs:
-        assert used <= budget + GRANULARITY, (budget, used)
         if result.status == 'ok':
             assert result.s == 1.0 and len(result.events) == len(whole.events)
             np.testing.assert_array_equal(result.state, whole.state)
@@ -81,7 +122,7 @@ def neck(load):
     return Stack((module, module, module.with_(f3y=load, f4y=load)))
 
 
-def test_a_neck_command_that_overran_ends_within_its_budget():
+def test_a_neck_command_that_overran_ends_within_its_budget(monkeypatch):
     """It now ends ok (back towards the branch point by its normal form, ~4800
     evaluations); budgets short of that cut it, in its steps and in the trackers that
     follow the buckled branch away from the branch point for it."""
@@ -90,7 +131,7 @@ def test_a_neck_command_that_overran_ends_within_its_budget():
     down = track_stack(start, neck(-10.0), settle_stack(start, upright_guess(start.modules)))
     path = counting(StackPath)(neck(-10.0), neck(critical * (1.0 + 1e-10)))
     y0 = down.final.state
-    whole, runs = bounded_runs(path, y0, down.final.certificate)
+    whole, runs = bounded_runs(path, y0, monkeypatch, down.final.certificate)
     check_bounded(runs, whole)
     for budget, result, _ in runs:
         assert path.eigenvalues(result.state, result.s)[0] > 0.0 and result.events == ()
@@ -99,12 +140,12 @@ def test_a_neck_command_that_overran_ends_within_its_budget():
     assert result.s == 0.0
 
 
-def test_a_module_command_across_a_fold_ends_within_its_budget():
+def test_a_module_command_across_a_fold_ends_within_its_budget(monkeypatch):
     """The paper module under 5 N loads, rho 0.5 -> 0.05 (one fold, a jump)."""
     start, end = ModuleParams.paper(0.5, F3=5, F4=5), ModuleParams.paper(0.05, F3=5, F4=5)
     theta = settle(start, [-1.0, -1.0]).theta
     path = counting(ModulePath)(start, end)
-    whole, runs = bounded_runs(path, theta)
+    whole, runs = bounded_runs(path, theta, monkeypatch)
     assert len(whole.events) == 1
     check_bounded(runs, whole)
     for budget, result, _ in runs:

@@ -35,6 +35,7 @@ gradients (exact to rounding) and central differences of them for the Hessians.
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -87,6 +88,14 @@ MAX_FLOW_TIME = 1e18
 #: Budgets: flow legs per rest, steps per path (the reference says so rather than hang).
 MAX_LEGS = 200
 MAX_STEPS = 3000
+#: Work budget of one reference path (:func:`quasi_static_path`) or of one flow called
+#: on its own: evaluations of the flows' velocity and Jacobian (the integrator's work; a
+#: neck's cost ~0.24 ms each here).  Past it the reference raises :class:`Undecided`
+#: instead of integrating on: issue 30's run of the N = 3 chord ramp with fx 1e-4 sat in
+#: one flow leg until pytest's 600 s timeout.  The default run's paths use 2.2e5 at most
+#: (that path, ~50 s; Haswell kernel), FULL_NECKS' slowest about twice that; 1e6 ends an
+#: undecided one within ~4 min.
+MAX_EVALUATIONS = 1_000_000
 
 FIELDS = ('rho', 'L1', 'L2', 'ka', 'kb', 'kc', 'f3x', 'f3y', 'f4x', 'f4y', 'm1', 'm2')
 
@@ -695,6 +704,45 @@ class NoRest(RuntimeError):
     """The flow did not come to a certified rest within ``MAX_FLOW_TIME``."""
 
 
+class Undecided(RuntimeError):
+    """The reference spent its work budget (``MAX_EVALUATIONS``) without deciding: not a
+    result about the mechanism, and never taken for one (not a :class:`NoRest`, which
+    the reference's own decisions catch)."""
+
+
+class _Work:
+    """Evaluations spent by the flows of the outermost reference call under way."""
+    spent = 0
+    limit = None
+
+
+@contextmanager
+def work_budget(limit=None):
+    """The budget of a reference call: opened by the outermost one, shared by the calls
+    nested in it (``limit``: MAX_EVALUATIONS by default)."""
+    if _Work.limit is not None:
+        yield
+        return
+    _Work.spent, _Work.limit = 0, MAX_EVALUATIONS if limit is None else limit
+    try:
+        yield
+    finally:
+        _Work.limit = None
+
+
+def spend(what, s):
+    """Count one evaluation of a flow; :class:`Undecided` past the budget."""
+    _Work.spent += 1
+    if _Work.limit is not None and _Work.spent > _Work.limit:
+        raise Undecided(f'the reference spent its budget of {_Work.limit} evaluations '
+                        f'({what} at s={s!r}) without deciding')
+
+
+def evaluations_spent():
+    """Evaluations spent by the last (or the current) outermost reference call."""
+    return _Work.spent
+
+
 @dataclass
 class Rest:
     state: np.ndarray
@@ -709,13 +757,19 @@ class Stalled(RuntimeError):
 
 
 def flow_to_rest(system, y0, s, push_offs=2, anchor=None, close=False) -> Rest:
-    """Where the overdamped mechanism released at y0 (parameters frozen at s) comes to rest.
+    """Where the overdamped mechanism released at y0 (parameters frozen at s) comes to rest
+    (within the work budget: :func:`work_budget`).
 
     Integrated in legs, each ending when the (relative) force has fallen tenfold or the
     leg's time is up; after each leg the rest point is certified if possible.  Each leg
     integrates the displacement from an anchor (the leg's start, or the saddle pushed
     off from), so that tolerances are relative to the motion itself: a slow escape from
     a nearly degenerate saddle is resolved, not damped away by large implicit steps."""
+    with work_budget():
+        return _flow_to_rest(system, y0, s, push_offs, anchor, close)
+
+
+def _flow_to_rest(system, y0, s, push_offs, anchor, close):
     y = np.array(y0, dtype=float)
     chunk, elapsed = 1.0, 0.0
     for _ in range(MAX_LEGS):
@@ -748,9 +802,9 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None, close=False) -> Rest:
         level = _flat_level(system, y, s)
         flat = lambda _, x: system.singular_chord(base + x, s) - level    # noqa: E731
         flat.terminal, flat.direction = True, -1
-        sol = solve_ivp(lambda _, x: system.velocity(base + x, s), (0.0, chunk), y - base,
+        sol = solve_ivp(lambda _, x: _velocity(system, base + x, s), (0.0, chunk), y - base,
                         method='LSODA', rtol=1e-10, atol=atol, events=(weaker, flat),
-                        jac=lambda _, x: system.velocity_jacobian(base + x, s),
+                        jac=lambda _, x: _velocity_jacobian(system, base + x, s),
                         dense_output=True)
         near = _closest_to_a_change_point(system, base, sol, s, y)
         y = base + sol.y[:, -1]
@@ -762,6 +816,16 @@ def flow_to_rest(system, y0, s, push_offs=2, anchor=None, close=False) -> Rest:
         if sol.status != 1:
             chunk *= 4.0
     raise NoRest(f'no certified rest at s={s!r} from {y0} within {MAX_LEGS} legs')
+
+
+def _velocity(system, y, s):
+    spend('the flow', s)
+    return system.velocity(y, s)
+
+
+def _velocity_jacobian(system, y, s):
+    spend("the flow's Jacobian", s)
+    return system.velocity_jacobian(y, s)
 
 
 def _flat_level(system, y, s):
@@ -891,7 +955,13 @@ class ReferencePath:
 
 
 def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
-    """Follow the overdamped mechanism from rest near ``theta`` at s0 to s1."""
+    """Follow the overdamped mechanism from rest near ``theta`` at s0 to s1 (within the
+    work budget: :func:`work_budget`)."""
+    with work_budget():
+        return _quasi_static_path(system, theta, s0, s1)
+
+
+def _quasi_static_path(system, theta, s0, s1):
     y = settle_reference(system, theta, s0).state
     path = ReferencePath(final=y, start=y.copy())
     s, ds, slope = s0, FIRST_STEP, None
@@ -1061,7 +1131,8 @@ def _passage(system, y_a, s_a, s_b):
 def other_sides(system, path):
     """The reference paths that took the other side of a perfect pitchfork passed
     continuously (equal energies: which side is a convention): for each passage with an
-    alternative, the path up to it followed on from the other side."""
+    alternative, the path up to it followed on from the other side (each within a work
+    budget of its own)."""
     for passage in path.passages:
         for other in passage.alternatives:
             onward = quasi_static_path(system, other, passage.s_onward)

@@ -263,7 +263,7 @@ class ModuleSystem:
         """One module has no chord constraint (see :meth:`NeckSystem.singular_chord`)."""
         return 1.0
 
-    def change_point_branches(self, t, s):
+    def change_point_branches(self, t, s, opened=False):
         return None
 
     def energy_seen_from(self, star, t, s):
@@ -559,7 +559,7 @@ class NeckSystem:
         probe[2 * i:2 * i + 2] = angles
         return self.constraints(probe, s)[i]
 
-    def change_point_branches(self, theta, s, push=CHANGE_POINT_PUSH):
+    def change_point_branches(self, theta, s, push=CHANGE_POINT_PUSH, opened=False):
         """(crossing, [states]) where module i lies flat at a change point of its linkage.
 
         With equal rods and equal chords a module is a parallelogram linkage: flat, its
@@ -568,7 +568,12 @@ class NeckSystem:
         The constrained flow stalls there (the projection on the constraints is undefined).
         The mechanism goes on along one of the four half-branches leaving the crossing:
         returned as states ``push`` rad out along each, put back on the constraint by a
-        Newton step along its gradient.  None if no module is at a crossing."""
+        Newton step along its gradient.  None if no module is at a crossing.
+
+        ``opened``: also where the chord's saddle point lies off the constraint (the
+        crossing opened into two branches, as a chord ramp carries the module past flat):
+        then the two states of the branches nearest the saddle point (where a flow kept
+        mirror-symmetric to the last bit stalls: the projection is undefined there)."""
         theta = np.asarray(theta, dtype=float)
         own = self._own_chord_gradients(theta, s)
         if own.size == 0:
@@ -590,7 +595,9 @@ class NeckSystem:
         length = float(np.max(self.values(s)[:, 1:3]))
         # (the solver's own success flag is not asked: near the root the difference
         # quotients are rounding-limited; the residuals below are what counts)
-        if np.max(np.abs(gradient(sol.x))) > 1e-7 * length or abs(chord(sol.x)) > 1e-9 * length \
+        offset = chord(sol.x)
+        if np.max(np.abs(gradient(sol.x))) > 1e-7 * length \
+                or abs(offset) > (1e-3 if opened else 1e-9) * length \
                 or angle_distance(sol.x, theta[2 * i:2 * i + 2]) > 0.1:
             return None
         values, vectors = np.linalg.eigh(hessian(sol.x))
@@ -598,6 +605,19 @@ class NeckSystem:
             return None
         crossing = theta.copy()
         crossing[2 * i:2 * i + 2] = sol.x
+        if abs(offset) > 1e-9 * length:         # opened: offset + values . (u, v)^2 / 2 = 0
+            k = 1 if offset < 0 else 0
+            across = vectors[:, k] * math.sqrt(-2.0 * offset / values[k])
+            states = []
+            for way in (1.0, -1.0):
+                a = sol.x + way * across
+                for _ in range(5):
+                    g = gradient(a)
+                    a = a - chord(a) * g / float(g @ g)
+                state = crossing.copy()
+                state[2 * i:2 * i + 2] = a
+                states.append(state)
+            return crossing, states
         states = []
         for sign in (1.0, -1.0):
             direction = math.sqrt(values[1]) * vectors[:, 0] + sign * math.sqrt(-values[0]) * vectors[:, 1]
@@ -813,6 +833,14 @@ def _flow_to_rest(system, y0, s, push_offs, anchor, close):
             passed = _through_change_point(system, near, s, push_offs)
             if passed is not None:
                 return passed
+        if sol.status < 0 and sol.t[-1] == 0.0:
+            # the integrator cannot leave y: a flow kept mirror-symmetric to the last bit
+            # reached a module's opened crossing (Nehalem kernel, bench_round_commands seed
+            # 1 stream 1 at s = 0.6006: 200 legs stalled at t = 0); its branches decide
+            passed = _through_change_point(system, y, s, push_offs, opened=True)
+            if passed is not None:
+                return passed
+            raise NoRest(f'the flow stalls at s={s!r} on {y} (no way out found)')
         if sol.status != 1:
             chunk *= 4.0
     raise NoRest(f'no certified rest at s={s!r} from {y0} within {MAX_LEGS} legs')
@@ -858,7 +886,7 @@ def _closest_to_a_change_point(system, base, sol, s, start):
     return samples[k] if flatness[k] <= CHANGE_POINT_GRADIENT else None
 
 
-def _through_change_point(system, y, s, push_offs):
+def _through_change_point(system, y, s, push_offs, opened=False):
     """The flow reached a module's change point: it goes on along the half-branch of
     steepest descent (:func:`descent_rate`) among those on which the mechanism moves away
     from the crossing (the velocity there points out); the other half-branches' landings
@@ -873,7 +901,7 @@ def _through_change_point(system, y, s, push_offs):
     Checked on two change points: the nearly symmetric N = 3 head-load fold
     (test_reference_tracking.py::test_n3_nearly_symmetric_neck_head_load_folds_where_the_
     tracker_says) and the perfect N = 3 chord ramp (its branch point, PERFECT_NECKS)."""
-    found = system.change_point_branches(y, s)
+    found = system.change_point_branches(y, s, opened=opened)
     if found is None:
         return None
     crossing, states = found

@@ -908,18 +908,32 @@ class _Tracker:
             self.crossing_alternatives = []
             landing = self.slide(y, s_land, rigid_first=True)
             if landing is not None and self.separation(landing, y) > self.settings.passage_radius:
-                # which half-branch the released mechanism takes turns on the departure's
-                # last 1e-7 rad (seed 0 stream 8: the reference's departure, 6e-9 rad
-                # from flat, took the other): ambiguous where another one lands elsewhere
-                others = self.crossing_alternatives + [state for _, state in leaving]
-                ambiguous = (self.lands_elsewhere(others, landing, s_land)
-                             or self.mirror_lands_too(y, landing, s_land))
-                at_event, s_at = self.landing_at_event(landing, s_land, s)
-                return landing, s_land, Event(kind=BRANCH_POINT, s=s, state=y, landing_s=s_at,
-                                              landing=at_event, ambiguous=ambiguous)
+                return self.off_crossing(y, s, landing, s_land, leaving)
             if s_land >= s_end:
                 break
+        # the departure's own flow does not leave: kept mirror-symmetric to the last bit
+        # (the Nehalem kernel's, seed 1 stream 1), it stalls where the rigid projection is
+        # undefined; the released mechanism leaves along the steepest way out (a mirror
+        # pair: either, ambiguous), as a flow that reaches a crossing does
+        s_land = min(s + 1e-9, s_end)
+        for _, state in sorted(leaving, key=lambda way: -way[0]):
+            self.crossing_alternatives = []
+            landing = self.slide(state, s_land, rigid_first=True)
+            if landing is not None and self.separation(landing, y) > self.settings.passage_radius:
+                return self.off_crossing(y, s, landing, s_land, leaving)
         return None
+
+    def off_crossing(self, y, s, landing, s_land, leaving):
+        """The jump off the crossing at (y, s) onto ``landing``: (landing, s_land, branch
+        point event).  Which half-branch the released mechanism takes turns on the
+        departure's last 1e-7 rad (seed 0 stream 8: the reference's departure, 6e-9 rad
+        from flat, took the other): ambiguous where another one lands elsewhere."""
+        others = self.crossing_alternatives + [state for _, state in leaving]
+        ambiguous = (self.lands_elsewhere(others, landing, s_land)
+                     or self.mirror_lands_too(y, landing, s_land))
+        at_event, s_at = self.landing_at_event(landing, s_land, s)
+        return landing, s_land, Event(kind=BRANCH_POINT, s=s, state=y, landing_s=s_at,
+                                      landing=at_event, ambiguous=ambiguous)
 
     def end_next_to_crossing(self, y, s_end):
         """The command's end where the branch coming in (``y``, within ``linkage_offset``

@@ -1131,7 +1131,12 @@ def test_neck_fold_next_to_a_flat_module_is_not_placed_on_unresolved_points():
     # (where it stopped: the head load moves from -2 to -10 N along s)
     s_last = got.jumps[0].s if got.jumps else (got.end.modules[2].f3y + 2.0) / -8.0
     fold = critical_solve(system, np.ravel(last), s_last)
-    assert np.max(np.abs(system.critical_residual(fold.x)[:-1])) < 1e-12, fold
+    # the KKT residual (over the energy scale, ~5 J) carries the flat module's chord force
+    # to rounding: 1e-16 x |mu| (~6e5 N) x a rod (0.12 m) / 5 J ~ 1.5e-12, so the fold's
+    # equations are met to ~1e-11 (1.4e-11 on the Sandybridge kernel), not to 1e-12
+    mu = np.max(np.abs(fold.x[6:-1]))
+    floor = 1e-16 * mu * 0.12 / system.rate(s_last)
+    assert np.max(np.abs(system.critical_residual(fold.x)[:-1])) < 1e-12 + 100.0 * floor, fold
     s_fold = fold.x[-1]
     assert abs(s_fold - 0.7752039726) < 1e-9, s_fold       # the reference path's fold
     if got.jumps:

@@ -1220,7 +1220,16 @@ def critical_solve(system, y, s):
     else:
         z0 = np.concatenate([y, [s]])
     with np.errstate(all='ignore'):
-        return root(system.critical_residual, z0, method='hybr', options={'xtol': 1e-14})
+        sol = root(system.critical_residual, z0, method='hybr', options={'xtol': 1e-14})
+        if sol.success:
+            return sol
+        # hybr stalls from some starts that Levenberg-Marquardt solves (and the other way
+        # round): 2.3e-6 in s before test_neck_fold_next_to_a_flat_module_...'s fold, hybr
+        # stopped at a residual of 2.8e-3 on the Nehalem kernel with numpy's SSE loops,
+        # where lm met the fold's equations to 7e-16; on Haswell, lm went astray there
+        other = root(system.critical_residual, z0, method='lm', options={'xtol': 1e-14})
+    size = lambda r: float(np.max(np.abs(system.critical_residual(r.x))))      # noqa: E731
+    return other if other.success and size(other) < size(sol) else sol
 
 
 def critical_point_in(system, y_a, s_a, s_b, slack=1e-10):

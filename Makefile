@@ -14,7 +14,7 @@ ROS_DOMAIN_ID ?= $(shell $(PYTHON) -c 'import os; print(1 + os.getpid() % 100)')
 export ROS_DOMAIN_ID
 export PYTHONUNBUFFERED := 1
 
-.PHONY: setup run test bench figures clean
+.PHONY: setup run test test-numerics bench figures clean
 
 setup: $(STAMP)
 
@@ -33,8 +33,41 @@ run: $(STAMP)
 	@echo "tensegrity_node on $(CONFIG), ROS_DOMAIN_ID=$(ROS_DOMAIN_ID), discovery LOCALHOST"
 	if [ -t 0 ]; then set -m; fi; $(PY) -m tensegrity_ros.node --ros-args --params-file $(CONFIG); exit $$?
 
+# The suite on PYTEST_WORKERS pytest-xdist workers (each its own DDS domain: base + index,
+# test/conftest.py), one BLAS thread each (the matrices are small; two workers fill the
+# two cores).  `make test PYTEST_WORKERS=0` runs it in one process.  FULL_NECKS=1 adds the
+# long sweeps (test_reference_tracking.py's whole nearly symmetric neck grid).
+PYTEST_WORKERS ?= 2
+XDIST = $(if $(filter 0,$(PYTEST_WORKERS)),,-n $(PYTEST_WORKERS) --dist loadgroup)
+TEST_ENV = ROS_PYTHON_CHECK_FIELDS=1 OPENBLAS_NUM_THREADS=1
 test: $(STAMP)
-	ROS_PYTHON_CHECK_FIELDS=1 $(PY) -m pytest $(PYTEST_ARGS)
+	$(TEST_ENV) $(PY) -m pytest $(XDIST) $(PYTEST_ARGS)
+
+# The numerically sensitive tests (marker `numerics`: perfect bifurcations, flat crossings,
+# mirror images, the reference's flows, counting clocks) on other machines' arithmetic:
+# OpenBLAS's kernels for AVX2 (Haswell), AVX (Sandybridge), SSE4.2 (Nehalem) and, where
+# this CPU has AVX-512, SkylakeX; numpy's own SIMD loops limited to the same class of
+# machine (NPY_DISABLE_CPU_FEATURES).  Each config: <OPENBLAS_CORETYPE>:<numpy features
+# off, comma-separated, or ->.  All must pass; the summary names the configs that failed.
+# (x86-64 with AVX2 runs the first four; elsewhere only this machine's own arithmetic.)
+NUMPY_AVX2 := X86_V4,AVX512_ICL,AVX512_SPR
+NUMPY_SSE := X86_V3,$(NUMPY_AVX2)
+ifeq ($(shell uname -m),x86_64)
+NUMERICS_CONFIGS ?= Haswell:- Haswell:$(NUMPY_AVX2) Sandybridge:$(NUMPY_SSE) Nehalem:$(NUMPY_SSE) \
+	$(if $(shell grep -qw avx512f /proc/cpuinfo 2>/dev/null && echo y),SkylakeX:-)
+else
+NUMERICS_CONFIGS ?= $(OPENBLAS_CORETYPE):-
+endif
+test-numerics: $(STAMP)
+	@failed=; for config in $(NUMERICS_CONFIGS); do \
+	  core=$${config%%:*}; off=$${config#*:}; [ "$$off" = - ] && off=; \
+	  echo "== test-numerics: OPENBLAS_CORETYPE=$$core NPY_DISABLE_CPU_FEATURES=$$off"; \
+	  $(TEST_ENV) OPENBLAS_CORETYPE=$$core NPY_DISABLE_CPU_FEATURES=$$off \
+	    $(PY) -m pytest $(XDIST) -m numerics -p no:cacheprovider $(PYTEST_ARGS) \
+	    || failed="$$failed $$config"; \
+	done; \
+	if [ -n "$$failed" ]; then echo "test-numerics FAILED under:$$failed"; exit 1; fi; \
+	echo "test-numerics: all configs passed: $(NUMERICS_CONFIGS)"
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do $(PY) $$b || exit 1; done

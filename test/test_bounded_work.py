@@ -15,6 +15,10 @@ from tensegrity_ros.core.bounded_work import Budget, Job, checkpoint
 from tensegrity_ros.core.events import Deferred, Jump, TrackingFailure
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 
+#: Counting clocks (check points, evaluations): `make test-numerics` runs it under other CPUs'
+#: arithmetic, where the work a path takes may differ.
+pytestmark = pytest.mark.numerics
+
 
 class CountingClock:
     """A clock that advances one unit each time it is read."""

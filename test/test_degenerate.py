@@ -18,6 +18,10 @@ from oracle_solver import oracle_equilibria, torus_distance
 from tensegrity_ros.core import (ModuleParams, equilibria, equilibria_batch, gradient,
                                  node_positions)
 
+#: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
+pytestmark = pytest.mark.numerics
+
+
 FLATS = [(0.0, 0.0), (0.0, math.pi), (math.pi, 0.0), (math.pi, math.pi)]
 RESIDUAL = 1e-13          # Equilibrium.residual is max |g| / scale
 

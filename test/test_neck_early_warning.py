@@ -15,6 +15,11 @@ from tensegrity_ros.core.events import BranchEnd, Jump, JumpAhead
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 
+#: Counting clocks (check points): `make test-numerics` runs it under other CPUs' arithmetic,
+#: where the work a path takes may differ.
+pytestmark = pytest.mark.numerics
+
+
 S = 1_000_000_000                    # ns per second
 TICK = S // 100                      # advance() at 100 Hz
 RATE = 0.01                          # m/s

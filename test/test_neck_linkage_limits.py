@@ -19,6 +19,9 @@ from tensegrity_ros.core.simulator import Simulator
 from reference_paths import (ModuleSystem, NeckSystem, angle_distance, critical_solve,
                              flow_to_rest, quasi_static_path)
 
+#: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
+pytestmark = pytest.mark.numerics
+
 
 def paper_neck(n, rho=0.75):
     return Stack(tuple(ModuleParams.paper(rho) for _ in range(n)))
@@ -189,7 +192,9 @@ def test_a_buckling_next_to_a_linkage_limit_is_the_reference_paths():
     5e-6, not 0): it was taken for a fold, and the jump reported landed in a minimum that
     exists only from 5e-5 m further on.  The reference's quasi-static path has no jump
     there: the neck goes on continuously, and so does the tracker now (a passage), to
-    the reference's end state."""
+    the reference's end state or its mirror image: the neck and its state are
+    mirror-symmetric, so the side the passage buckles to is a convention, and which one
+    each takes turns on rounding (the Nehalem BLAS kernel's tracker took the other)."""
     neck = lambda rho1: Stack((
         ModuleParams(rho=0.15, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02),
         ModuleParams(rho=rho1, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02),
@@ -204,7 +209,9 @@ def test_a_buckling_next_to_a_linkage_limit_is_the_reference_paths():
     held = track_stack(start, start, state).final
     ref = quasi_static_path(NeckSystem(start.modules, end.modules), np.ravel(held.theta))
     assert ref.jumps == []
-    assert angle_distance(np.ravel(track.final.theta), ref.final) < 1e-9
+    final = np.ravel(track.final.theta)
+    mirrored = track.final.theta[:, ::-1].ravel()
+    assert min(angle_distance(final, ref.final), angle_distance(mirrored, ref.final)) < 1e-9
 
 
 def test_a_jump_that_lands_past_its_event_says_where_its_landing_is_an_equilibrium():

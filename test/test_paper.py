@@ -93,6 +93,7 @@ UNLOADED_CASES = [(rho, L1, L2, k)
                   if off_lines(rho, L1, L2, 0.02 * L1)]
 
 
+@pytest.mark.numerics
 @pytest.mark.parametrize('rho, L1, L2, k', UNLOADED_CASES)
 def test_unloaded_flat_configurations_and_parallelogram(rho, L1, L2, k):
     p = ModuleParams(rho=rho, L1=L1, L2=L2, ka=k, kb=k, kc=k)
@@ -145,6 +146,7 @@ def test_unloaded_region_on_a_fine_grid():
     assert inside.any() and (~inside).any()
 
 
+@pytest.mark.numerics
 def test_fig3_two_mirrored_stable_solutions():
     """Fig. 3 (right): rho = 1, L2 = 3/2."""
     s = equilibria(ModuleParams.paper(1.0, L2=1.5))
@@ -162,6 +164,7 @@ SYMMETRIC_CASES = [(rho, F, L, k) for L, k in [(1.0, 100.0), (0.5, 100.0), (2.0,
                    for F in (-40.0, -10.0, -2.0, 1.0, 7.0, 25.0)]
 
 
+@pytest.mark.numerics
 @pytest.mark.parametrize('rho, F, L, k', SYMMETRIC_CASES)
 def test_symmetric_case_asymmetric_equilibria_are_unstable(rho, F, L, k):
     """Eq. (10): det H < 0 for the equilibria with t1 != t2 (at most two, swapped)."""
@@ -236,6 +239,7 @@ def transitions(F, lo=0.002, hi=2.0, n=200, width=1e-12):
     return found
 
 
+@pytest.mark.numerics
 @pytest.mark.parametrize('F', [-10.0, -7.5, -4.0, -1.0, -0.2, 0.2, 1.0, 4.0, 7.5, 10.0])
 def test_symmetric_two_stable_boundary_is_eq15_and_eq16(F):
     found = transitions(F)
@@ -350,6 +354,7 @@ def lower_branch(rho, F=5.0, L2=1.0):
     return s, [e for e in s if -2.5 < e.theta1 < -0.2]
 
 
+@pytest.mark.numerics
 def test_fig8a_c1_is_a_symmetry_breaking_pitchfork():
     c1 = eq15_roots(5.0)[-1]
     for eps in (1e-2, 1e-3, 1e-4):
@@ -380,6 +385,7 @@ def test_fig8a_c2_is_a_fold():
         assert s.num_stable == 1 and s.stable[0].theta1 > 0     # the jump goes up
 
 
+@pytest.mark.numerics
 def test_fig8b_c1_becomes_a_fold_for_l2_1_05():
     rho = np.linspace(0.01, 1.2, 600)
     b = equilibria_batch(rho, L2=1.05, f3y=5, f4y=5)

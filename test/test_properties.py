@@ -10,9 +10,14 @@ points whose equilibria are all well-conditioned (|lambda_min| > 1e-6
 import math
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, event, given, settings, strategies as st
 
 from tensegrity_ros.core import ModuleParams, equilibria, equilibria_batch, gradient
+
+#: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
+pytestmark = pytest.mark.numerics
+
 
 SETTINGS = dict(derandomize=True, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])

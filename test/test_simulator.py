@@ -85,6 +85,7 @@ def test_a_command_is_the_trackers_straight_path():
     assert sim.modules == (fig8a(0.3),)
 
 
+@pytest.mark.numerics
 def test_branch_point_jump_then_hysteresis():
     sim = fig8a_simulator()
     outcome = sim.command_rho(0, 0.1, 0)
@@ -311,6 +312,7 @@ def test_a_neck_jump_is_recorded_in_every_module():
     np.testing.assert_allclose(sim.state.theta, expected.final.theta, atol=0)
 
 
+@pytest.mark.numerics
 def test_a_neck_buckling_sideways_continuously_is_no_jump():
     """config/neck.yaml with a heavy head: shortening the middle module passes a
     supercritical branch point: no jump, no warning, the neck turns sideways."""
@@ -332,6 +334,7 @@ def test_a_neck_buckling_sideways_continuously_is_no_jump():
     assert abs(sim.state.head_angle) > 0.05 and verified_minimum(sim)
 
 
+@pytest.mark.numerics
 def test_a_neck_load_ending_just_past_its_sideways_buckling_is_taken():
     """N = 3 upright paper neck, head load set to 1e-8 past its sideways buckling (-6.854 N
     per node), where lambda_min / lambda_max is 9e-11: the tracker's state is certified by
@@ -355,6 +358,7 @@ def test_a_neck_load_ending_just_past_its_sideways_buckling_is_taken():
     np.testing.assert_allclose(sim.state.theta, expected.final.theta, atol=1e-9)
 
 
+@pytest.mark.numerics
 def test_a_module_rho_ending_just_past_its_buckling_is_carried_on():
     """The unloaded paper module buckles continuously at rho = L = 1 going down; rho set to
     1e-10 past it (lambda_min / lambda_max = 2e-10, below the margin test) ends on a state
@@ -429,6 +433,7 @@ def _raises_runtime_error(*args, **kwargs):
 # early warnings only where the tracker jumps (issue 10)
 
 
+@pytest.mark.numerics
 def test_no_early_warning_where_a_branch_merges_into_the_flat_state():
     """Unloaded paper module: the upper branch meets the flat state at rho = L = 1 (a
     supercritical pitchfork run backwards): the range ends there with a branch point, yet
@@ -441,6 +446,7 @@ def test_no_early_warning_where_a_branch_merges_into_the_flat_state():
     assert outcome.events == () and sim.modules[0].rho == 1.3
 
 
+@pytest.mark.numerics
 def test_the_flat_state_buckles_smoothly_without_warning_or_jump():
     """The other way the flat state loses stability at rho = 1: a supercritical pitchfork,
     the module buckles smoothly onto the upper branch growing out of it (no jump, so no

@@ -156,7 +156,8 @@ def test_heavy_damping_lands_where_the_quasi_static_simulator_lands():
     sim = make(damping=5.0)
     sim.command_rho(0, 0.9, 0)
     [jump], _ = run(sim, 0, 60 * 10**9)
-    static = Simulator([FIG8A], [LOWER], [ModuleLimits(0.05, 1.95)], time_budget=None)  # one path
+    # one path, in one call (no wall-clock budget: a loaded machine would defer it)
+    static = Simulator([FIG8A], [LOWER], [ModuleLimits(0.05, 1.95)], time_budget=None)
     [static_jump] = static.command_rho(0, 0.9, 0).of_type(Jump)
     assert (jump.kind, jump.modules[0].rho) == (static_jump.kind, static_jump.modules[0].rho)
     # the quasi-static to_theta is the landing at the fold's rho; the dynamic one is the

@@ -44,6 +44,7 @@ def test_one_module_stack_equals_the_module_solver(params):
         assert match.actuator_forces[0] == pytest.approx(e.actuator_force, abs=1e-9)
 
 
+@pytest.mark.numerics
 def test_one_module_stack_tracks_fig8a_like_the_module():
     def stack(rho):
         return Stack((ModuleParams.paper(rho, F3=5, F4=5),))
@@ -223,6 +224,7 @@ def kind_of(event):
     return event.kind if isinstance(event, StackJump) else BRANCH_POINT
 
 
+@pytest.mark.numerics
 @pytest.mark.parametrize('n', [1, 2, 3])
 def test_critical_load_is_where_the_reduced_hessian_loses_definiteness(n):
     """The event's load against the zero of lambda_min extrapolated from tracked states
@@ -244,6 +246,7 @@ def test_critical_load_is_where_the_reduced_hessian_loses_definiteness(n):
     assert len(past.jumps) + len(past.passages) == 1 and past.final.stable
 
 
+@pytest.mark.numerics
 def test_critical_load_falls_as_the_neck_grows_and_n1_is_the_module_fold():
     loads = [critical_head_load(n)[0].stack.modules[-1].f3y for n in (1, 2, 3, 4)]
     magnitudes = [-f for f in loads]
@@ -257,6 +260,7 @@ def test_critical_load_falls_as_the_neck_grows_and_n1_is_the_module_fold():
     assert loads[0] == pytest.approx(module.jumps[0].params.f3y, abs=1e-7)
 
 
+@pytest.mark.numerics
 def test_upright_neck_buckles_sideways_continuously():
     """N = 3: a supercritical branch point, passed without a jump onto a buckled minimum
     that grows out of the upright state like sqrt(load - critical load)."""
@@ -379,6 +383,7 @@ def symmetric_module(rng):
                         m1=mass, m2=mass)
 
 
+@pytest.mark.numerics
 @pytest.mark.parametrize('seed', range(4))
 def test_the_mirror_image_of_an_equilibrium_is_one_of_a_mirror_symmetric_stack(seed):
     """The mirror image (each module's (t1, t2) -> (t2, t1)) of a minimum of a
@@ -405,6 +410,7 @@ def test_the_mirror_image_of_an_equilibrium_is_one_of_a_mirror_symmetric_stack(s
     assert ModulePath(module, module.with_(kb=module.kb + 1.0)).mirror([0.1, 0.7], 0.5) is None
 
 
+@pytest.mark.numerics
 def test_a_rigid_flow_stepping_over_a_flat_crossing_stops_at_it():
     """A flow step whose ends lie on both sides of a module's flat crossing (both rods
     turned through the base line between them) is searched on its dense output: the

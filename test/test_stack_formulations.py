@@ -10,6 +10,9 @@ from stack_cartesian_reference import CartesianStackPath
 from tensegrity_ros.core import ModuleParams, continuation
 from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
 
+#: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
+pytestmark = pytest.mark.numerics
+
 
 def wrapped(a, b):
     return float(np.max(np.abs((np.asarray(a) - np.asarray(b) + np.pi) % (2 * np.pi) - np.pi)))
@@ -77,6 +80,15 @@ JUMP_PATHS = [
 ]
 
 
+#: The two formulations' departures agree to this (rad).  A fold's departure is a double
+#: root of the equilibrium equations: next to it the branch moves like a sqrt(s* - s)
+#: (a ~ 1.2 rad on the N = 3 head-load fold, 0.5 within 1e-10 of it), and rounding pins
+#: its state along the critical mode only to ~sqrt(rounding), so two localisations of one
+#: fold (here 8e-13 apart in s) give departures up to ~2e-5 apart (1.7e-5 on the Haswell
+#: BLAS kernel); a branch point's departure is a regular point of its branch.
+DEPARTURE_TOL = {'fold': 1e-4, 'branch_point': 1e-6}
+
+
 @pytest.mark.parametrize('start, end, theta', JUMP_PATHS)
 def test_jumps_agree_with_node_coordinates(start, end, theta):
     first = settle_stack(start, theta)
@@ -95,7 +107,8 @@ def test_jumps_agree_with_node_coordinates(start, end, theta):
     orient = lambda theta: np.asarray(theta)[:, ::-1] if mirrored else np.asarray(theta)
     for jump, mine, event in zip(ours.jumps, raw.events, ref.events):
         assert jump.s == pytest.approx(event.s, abs=1e-10)
-        assert wrapped(jump.from_theta, orient(path.angles(event.state, event.s))) < 1e-6
+        assert wrapped(jump.from_theta, orient(path.angles(event.state, event.s))) < \
+            DEPARTURE_TOL[jump.kind]
         there = CartesianStackPath(path.params(event.landing_s), path.params(mine.landing_s))
         landed = continuation.track(there, event.landing)
         assert landed.status == 'ok' and not landed.events

@@ -12,6 +12,10 @@ from stack_cartesian_reference import CartesianStackPath
 from tensegrity_ros.core import BRANCH_POINT, FOLD, ModuleParams, equilibria
 from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 
+#: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
+pytestmark = pytest.mark.numerics
+
+
 UPRIGHT = equilibria(ModuleParams.paper(0.6)).stable[-1].theta
 
 

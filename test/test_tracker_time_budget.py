@@ -17,12 +17,17 @@ the Haswell kernel's run overshot one budget by 59.)  The work between two check
 points is bounded too, by GRANULARITY (see there).
 """
 import numpy as np
+import pytest
 
 from tensegrity_ros.core import ModuleParams, TrackerSettings, equilibria, settle
 from tensegrity_ros.core import bounded_work, continuation
 from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
 from tensegrity_ros.core.start_state import upright_guess
 from tensegrity_ros.core.tracking import ModulePath
+
+#: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
+pytestmark = pytest.mark.numerics
+
 
 #: Most evaluations between two check points (a lost check point, a loop without one,
 #: would run up thousands).  A check point is passed once per pass of a tracker's loop

@@ -8,6 +8,9 @@ from scipy.optimize import brentq, fsolve
 from tensegrity_ros.core import (BRANCH_POINT, FOLD, ModuleParams, TrackingError, equilibria,
                                  settle, track, track_module)
 
+#: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
+pytestmark = pytest.mark.numerics
+
 
 def fig8(rho, L2=1.0, F=5.0):
     return ModuleParams.paper(rho, L2=L2, F3=F, F4=F)

@@ -13,6 +13,10 @@ from hypothesis import assume, given, settings, strategies as st
 from tensegrity_ros.core import BRANCH_POINT, FOLD, ModuleParams, equilibria, settle, track_module
 from tensegrity_ros.core.analysis import operation_range
 
+#: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
+pytestmark = pytest.mark.numerics
+
+
 P = ModuleParams.paper
 
 

@@ -28,7 +28,7 @@ def wrapped(a, b):
 # -- a paper module under a tiny symmetric load: an imperfect pitchfork at rho = L -----------
 # On the symmetric subspace t1 = t2 = t of the paper module (L = 1, k = 100, F3 = F4 = F)
 # the equilibria are the roots of g(t, rho) = 200 rho sin t - 100 sin 2t - F cos t
-# (DESIGN.md section 1, written out), and the Hessian's eigenvalue along (1, 1) is
+# (docs/model.md section 1, written out), and the Hessian's eigenvalue along (1, 1) is
 # g_t = 200 rho cos t - 200 cos 2t + F sin t; the other, along (1, -1), is
 # 200 rho cos t + F sin t > 0 near t = 0.  So a fold of a symmetric minimum is a root
 # of (g, g_t), and a branch on which g_t stays positive is one continuous minimum.
@@ -101,7 +101,7 @@ def test_a_tiny_symmetric_load_from_the_side_it_favours_is_no_jump(F):
 
 def test_unequal_rods_unloaded_merge_into_the_flat_state_without_a_jump():
     """L1 = 1, L2 = 1.5, no load, the upper branch from rho 0.75 down to 0.05: the
-    parallelogram pair exists for |L1 - L2| < 2 rho (DESIGN.md section 2) and merges
+    parallelogram pair exists for |L1 - L2| < 2 rho (docs/model.md section 2) and merges
     into the flat state (pi, 0) at rho = 1/4, which is stable below it (a supercritical
     pitchfork run backwards): the minimum goes on continuously, no jump.  The issue's
     reference reported a jump at s = 0.7142857124 (rho = 1/4), undecided there.  Decided

@@ -112,7 +112,7 @@ def pinned_newton(run, y, s):
 
 def solve_branch_point(run, y, s):
     """(y*, s*) of the branch point next to (y, s), to rounding, or ``None``: Newton
-    (finite-difference Jacobian) on the regular extended system of DESIGN.md section 3,
+    (finite-difference Jacobian) on the regular extended system of docs/model.md section 3,
     {F(y, s) + beta u0 = 0, lambda_min(y, s) = 0, u(y, s) . F_s(y, s) = 0}, u the
     Jacobian's left singular vector of its smallest singular value (u0, the start's, in
     the unfolding term).  Regular at a simple branch point: lambda_min fixes s*, u . F_s

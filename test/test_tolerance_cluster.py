@@ -157,3 +157,36 @@ def test_ctrl_c_stops_the_command_and_its_workers():
                                  for w in workers), 30, 'the workers to end')
     finally:
         stop(process)
+
+
+@slow[0]
+@slow[1]
+def test_ctrl_c_on_a_terminal_prints_one_line_not_the_workers_tracebacks():
+    """V1 (issue 34: Ctrl-C stops cleanly).  A terminal's Ctrl-C reaches the whole
+    foreground process group, the LocalCluster's worker processes included.  The command
+    exits 130 with no worker left (as test_ctrl_c_stops_the_command_and_its_workers
+    checks), but at f8d033b its stderr also carries ~90 lines of the workers' tracebacks
+    ('Process Dask Worker process (from Nanny)', asyncio CancelledError, nanny ERROR)
+    before 'tensegrity tolerance: interrupted' (the vectorised questions; with --exact,
+    as the test above runs, 0-1 traceback).  Clean means the one line."""
+    command = [str(BIN / 'tensegrity'), 'tolerance', 'path', '--rho', '0.5', '--F', '5',
+               '--theta1', '-1', '--theta2', '-1', '--to', 'rho=0.157', '--tol',
+               'L2=normal:0.001', '--samples', '1048576', '--processes', '2', '--no-progress']
+    process = subprocess.Popen(command, start_new_session=True, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        parent = psutil.Process(process.pid)
+
+        def computing_workers():
+            workers = [p for p in parent.children(recursive=True)
+                       if 'spawn_main' in ' '.join(p.cmdline())]
+            busy = [w for w in workers if sum(w.cpu_times()[:2]) > 2.0]   # past start-up
+            return workers if len(busy) >= 2 else None
+        wait_for(computing_workers, 120, 'two workers computing chunks')
+        os.killpg(process.pid, signal.SIGINT)  # what a terminal's Ctrl-C sends
+        _, err = process.communicate(timeout=60)
+        assert process.returncode == 130, err
+        assert 'Traceback' not in err, err
+        assert err.strip().splitlines()[-1] == 'tensegrity tolerance: interrupted'
+    finally:
+        stop(process)

@@ -24,7 +24,7 @@ import psutil
 import pytest
 
 from tensegrity_ros.tolerance import module_design, tolerance_study
-from tensegrity_ros.tolerance_engine import run_chunks
+from tensegrity_ros.tolerance_engine import local_cluster, run_chunks
 
 BIN = Path(sys.executable).parent
 slow = [pytest.mark.slow,
@@ -131,6 +131,29 @@ def test_a_worker_that_dies_loses_no_sample(tmp_path):
     results, run = run_chunks(die_once, chunks, processes=2)
     assert os.path.exists(marker)                              # chunk 1's worker did die
     assert results == [(i, list(range(10 * i, 10 * i + 10))) for i in range(4)]
+
+
+def sigint_blocked():
+    """Whether SIGINT is blocked in the calling thread (on a worker: its event loop's)."""
+    return signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, [])
+
+
+@slow[0]
+@slow[1]
+@pytest.mark.skipif(not hasattr(signal, 'pthread_sigmask'), reason='POSIX signal masks')
+def test_local_cluster_workers_and_their_restarts_do_not_take_sigint():
+    """A terminal's Ctrl-C reaches the workers too: they must leave it to the command.
+    A worker the nanny starts again after a death must too (it is spawned later, from
+    the cluster's event loop thread); the caller's own thread still takes SIGINT."""
+    from distributed import Client
+    with local_cluster(1) as cluster, Client(cluster, timeout=60) as client:
+        assert not sigint_blocked()
+        assert list(client.run(sigint_blocked).values()) == [True]
+        [first] = client.run(os.getpid).values()
+        os.kill(first, signal.SIGKILL)
+        wait_for(lambda: [pid for pid in client.run(os.getpid, on_error='ignore').values()
+                          if pid != first], 90, 'the nanny to start the worker again')
+        assert list(client.run(sigint_blocked).values()) == [True]
 
 
 @slow[0]

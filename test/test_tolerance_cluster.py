@@ -55,6 +55,25 @@ def stop(process):
             process.wait(timeout=15)
 
 
+def computing_workers(process):
+    """A condition for wait_for: the LocalCluster worker processes under ``process`` once
+    two of them are computing chunks (past start-up's CPU time), else None.  Workers are
+    the ones multiprocessing spawned (the resource tracker is a python child too)."""
+    parent = psutil.Process(process.pid)
+
+    def condition():
+        workers = [p for p in parent.children(recursive=True)
+                   if 'spawn_main' in ' '.join(p.cmdline())]
+        busy = [w for w in workers if sum(w.cpu_times()[:2]) > 2.0]
+        return workers if len(busy) >= 2 else None
+    return condition
+
+
+def all_ended(processes):
+    """Whether none of ``processes`` (psutil) runs any more (a zombie has ended)."""
+    return not any(p.is_running() and p.status() != psutil.STATUS_ZOMBIE for p in processes)
+
+
 @pytest.fixture
 def remote_scheduler(tmp_path):
     """A dask scheduler and 2 single-threaded workers on 127.0.0.1, separate processes."""
@@ -165,19 +184,13 @@ def test_ctrl_c_stops_the_command_and_its_workers():
     process = subprocess.Popen(command, start_new_session=True, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     try:
-        parent = psutil.Process(process.pid)
-        workers = wait_for(lambda: [p for p in parent.children(recursive=True)
-                                    if 'python' in p.name()][:2]
-                           if len(parent.children(recursive=True)) >= 2 else None, 90,
-                           'the LocalCluster workers')
-        time.sleep(2.0)                         # let them start computing chunks
+        workers = wait_for(computing_workers(process), 120, 'two workers computing chunks')
         assert process.poll() is None
         os.killpg(process.pid, signal.SIGINT)  # what a terminal's Ctrl-C sends
         _, err = process.communicate(timeout=60)
         assert process.returncode == 130, err
         assert 'interrupted' in err
-        wait_for(lambda: not any(w.is_running() and w.status() != psutil.STATUS_ZOMBIE
-                                 for w in workers), 30, 'the workers to end')
+        wait_for(lambda: all_ended(workers), 30, 'the workers to end')
     finally:
         stop(process)
 
@@ -198,18 +211,12 @@ def test_ctrl_c_on_a_terminal_prints_one_line_not_the_workers_tracebacks():
     process = subprocess.Popen(command, start_new_session=True, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     try:
-        parent = psutil.Process(process.pid)
-
-        def computing_workers():
-            workers = [p for p in parent.children(recursive=True)
-                       if 'spawn_main' in ' '.join(p.cmdline())]
-            busy = [w for w in workers if sum(w.cpu_times()[:2]) > 2.0]   # past start-up
-            return workers if len(busy) >= 2 else None
-        wait_for(computing_workers, 120, 'two workers computing chunks')
+        workers = wait_for(computing_workers(process), 120, 'two workers computing chunks')
         os.killpg(process.pid, signal.SIGINT)  # what a terminal's Ctrl-C sends
         _, err = process.communicate(timeout=60)
         assert process.returncode == 130, err
         assert 'Traceback' not in err, err
         assert err.strip().splitlines()[-1] == 'tensegrity tolerance: interrupted'
+        wait_for(lambda: all_ended(workers), 30, 'the workers to end')
     finally:
         stop(process)

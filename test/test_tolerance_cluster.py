@@ -5,10 +5,10 @@
   (``dask scheduler --host 127.0.0.1``, ``dask worker tcp://127.0.0.1:PORT``);
 * a worker that dies in the middle of a chunk loses no sample (the scheduler reruns it);
 * Ctrl-C (SIGINT to the command's process group, as a terminal sends it) ends the
-  command with status 130 and leaves no worker process behind.
+  command with status 130, one line on stderr, and leaves no worker process behind.
 
-The last two start LocalClusters of their own (~5 s each here): they run with
-TENSEGRITY_SLOW_TESTS=1 (``-m slow`` selects them).
+The tests marked ``slow`` start LocalClusters of their own (1-12 s each here, ~25 s
+together at load 2.5-4.5); ``make test`` runs them, ``-m 'not slow'`` leaves them out.
 """
 import json
 import os
@@ -27,9 +27,6 @@ from tensegrity_ros.tolerance import module_design, tolerance_study
 from tensegrity_ros.tolerance_engine import local_cluster, run_chunks
 
 BIN = Path(sys.executable).parent
-slow = [pytest.mark.slow,
-        pytest.mark.skipif(not os.environ.get('TENSEGRITY_SLOW_TESTS'),
-                           reason='slow (a LocalCluster of its own): TENSEGRITY_SLOW_TESTS=1')]
 cloudpickle.register_pickle_by_value(sys.modules[__name__])     # workers need no test path
 
 
@@ -142,8 +139,7 @@ def die_once(marker, index, payload):
     return (index, payload), 0.0, 0.0
 
 
-@slow[0]
-@slow[1]
+@pytest.mark.slow
 def test_a_worker_that_dies_loses_no_sample(tmp_path):
     marker = str(tmp_path / 'died')
     chunks = [(marker, i, list(range(10 * i, 10 * i + 10))) for i in range(4)]
@@ -157,8 +153,7 @@ def sigint_blocked():
     return signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, [])
 
 
-@slow[0]
-@slow[1]
+@pytest.mark.slow
 @pytest.mark.skipif(not hasattr(signal, 'pthread_sigmask'), reason='POSIX signal masks')
 def test_local_cluster_workers_and_their_restarts_do_not_take_sigint():
     """A terminal's Ctrl-C reaches the workers too: they must leave it to the command.
@@ -175,8 +170,7 @@ def test_local_cluster_workers_and_their_restarts_do_not_take_sigint():
         assert list(client.run(sigint_blocked).values()) == [True]
 
 
-@slow[0]
-@slow[1]
+@pytest.mark.slow
 def test_ctrl_c_stops_the_command_and_its_workers():
     command = [str(BIN / 'tensegrity'), 'tolerance', 'path', '--rho', '0.5', '--F', '5',
                '--theta1', '-1', '--theta2', '-1', '--to', 'rho=0.1', '--tol', 'L2=0.01',
@@ -195,8 +189,7 @@ def test_ctrl_c_stops_the_command_and_its_workers():
         stop(process)
 
 
-@slow[0]
-@slow[1]
+@pytest.mark.slow
 def test_ctrl_c_on_a_terminal_prints_one_line_not_the_workers_tracebacks():
     """V1 (issue 34: Ctrl-C stops cleanly).  A terminal's Ctrl-C reaches the whole
     foreground process group, the LocalCluster's worker processes included.  The command

@@ -15,11 +15,16 @@ A worker that dies loses no sample: the scheduler gives its tasks to another wor
 (up to ``distributed.scheduler.allowed-failures`` deaths per task), and a task that
 raises is retried ``retries`` times.  Ctrl-C (KeyboardInterrupt) cancels the tasks and
 closes the client and the LocalCluster (its worker processes end) before it propagates.
+A terminal's Ctrl-C reaches the LocalCluster's worker processes too (one process group):
+they are started with SIGINT blocked, so only this process answers it (distributed's
+worker processes would otherwise each die of it with a traceback on stderr).
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass
 import os
+import signal
 import time
 
 #: Seconds to wait for a scheduler to answer before giving up.
@@ -104,6 +109,51 @@ def _run_here(function, chunks, progress, sizes, description):
                               len(chunks))
 
 
+@contextmanager
+def _sigint_kept_from_new_threads():
+    """Block SIGINT in this thread while the block runs, for the threads it starts.
+
+    A thread inherits its creator's signal mask, and a process its spawning thread's
+    (fork and exec keep it): the LocalCluster's event loop thread, started here, and the
+    threads it starts to spawn (and respawn) worker processes keep SIGINT blocked, so
+    the workers never see a terminal's Ctrl-C.  This thread's mask is restored on exit,
+    and a Ctrl-C that came meanwhile is then delivered (deferred, not lost).
+    multiprocessing's resource tracker is started first: starting it unblocks SIGINT in
+    the thread that starts it (SIG_UNBLOCK, not the mask it found; CPython 3.11), which
+    would be the event loop's.  Without pthread_sigmask (Windows) it does nothing.
+    """
+    if not hasattr(signal, 'pthread_sigmask'):
+        yield
+        return
+    from multiprocessing import resource_tracker
+    resource_tracker.ensure_running()
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def local_cluster(n):
+    """A LocalCluster of ``n`` single-threaded worker processes on 127.0.0.1 whose
+    workers ignore Ctrl-C (SIGINT blocked): the caller answers it and closes the cluster."""
+    import logging
+
+    from distributed import LocalCluster
+    cluster = None
+    try:
+        with _sigint_kept_from_new_threads():
+            # loopback only; its HTTP server on a free port (8787 may be another's)
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                   host='127.0.0.1', dashboard_address='127.0.0.1:0',
+                                   silence_logs=logging.ERROR)
+    except KeyboardInterrupt:           # a Ctrl-C during start-up, delivered at the end
+        if cluster is not None:
+            cluster.close()
+        raise
+    return cluster
+
+
 def _check_workers(client, fingerprint):
     mine = fingerprint()
     try:
@@ -122,9 +172,7 @@ def _check_workers(client, fingerprint):
 
 def _run_dask(function, chunks, processes, scheduler, progress, retries, sizes, description,
               fingerprint=None):
-    import logging
-
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import Client, as_completed
 
     t0 = time.perf_counter()
     cluster = client = None
@@ -132,10 +180,7 @@ def _run_dask(function, chunks, processes, scheduler, progress, retries, sizes, 
     try:
         if scheduler is None:
             n = processes or cores()
-            # loopback only; its HTTP server on a free port (8787 may be another's)
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                   host='127.0.0.1', dashboard_address='127.0.0.1:0',
-                                   silence_logs=logging.ERROR)
+            cluster = local_cluster(n)
             client = Client(cluster, timeout=CONNECT_TIMEOUT)
             engine = f'LocalCluster ({n} worker processes)'
         else:

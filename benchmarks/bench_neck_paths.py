@@ -15,11 +15,11 @@ stopped (SIGALRM) and counted as over.
 import argparse
 import json
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 HERE = Path(__file__).resolve().parents[1]
 
@@ -146,7 +146,7 @@ def main():
         print(f'median ratio baseline / this tree: '
               f'{medians["baseline"] / medians["this tree"]:.2f}')
         differ = [(i, a, b) for i, (a, b) in enumerate(zip(answers['this tree'],
-                                                            answers['baseline']))
+                                                           answers['baseline']))
                   if (a.get('status'), a.get('jumps')) != (b.get('status'), b.get('jumps'))]
         for i, a, b in differ:
             print(f'    path {i} ({a["family"]}, N = {a["n"]}): {a.get("status")} '

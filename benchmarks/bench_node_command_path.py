@@ -30,10 +30,10 @@ a figure the load does not change, by area (ROS layer, simulator, stack tracker)
 import argparse
 import math
 import os
+from pathlib import Path
 import statistics
 import sys
 import time
-from pathlib import Path
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 sys.path.insert(0, str(Path(__file__).resolve().parent))

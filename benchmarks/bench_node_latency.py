@@ -39,12 +39,12 @@ import argparse
 import json
 import math
 import os
+from pathlib import Path
 import statistics
 import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / 'config' / 'default.yaml'
@@ -61,8 +61,6 @@ def _ros_env():
     env['PYTHONUNBUFFERED'] = '1'
     env.pop('ROS_PYTHON_CHECK_FIELDS', None)
     return env
-
-
 
 
 def _spin_relay(make_node, executor_kind):
@@ -90,6 +88,7 @@ def _spin_relay(make_node, executor_kind):
         rclpy.try_shutdown()
     return 0
 
+
 def _stop(procs):
     """Ctrl-C every process still running, then wait for it (killed after 10 s)."""
     for p in procs:
@@ -100,6 +99,7 @@ def _stop(procs):
             p.wait(timeout=10)
         except subprocess.TimeoutExpired:
             p.kill()
+
 
 def _cpu_seconds(pid):
     """User + system CPU time of a process (Linux /proc), or nan."""
@@ -491,9 +491,7 @@ def main(argv=None):
     return 1 if (args.strict and not ok) else 0
 
 
-
 # -- the neck case (issue 14): config/neck.yaml driven by joint_commands -----------------
-
 NECK_CONFIG = ROOT / 'config' / 'neck.yaml'
 NECK_MODULES = ('m0', 'm1', 'm2')
 NECK_RHO = (0.09, 0.085, 0.08)         # rho_initial of config/neck.yaml (m)

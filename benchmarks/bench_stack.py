@@ -30,16 +30,16 @@ module tracker.
 """
 import math
 import os
+from pathlib import Path
 import statistics
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import root
 
-from tensegrity_ros.core import ModuleParams, continuation, track_module
-from tensegrity_ros.core.stack import Stack, StackPath, _end_record, settle_stack, track_stack
+from tensegrity_ros.core import continuation, ModuleParams, track_module
+from tensegrity_ros.core.stack import _end_record, settle_stack, Stack, StackPath, track_stack
 from tensegrity_ros.core.stack_fast_step import _dgesv, _dgetrf, _start_point
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
@@ -138,7 +138,9 @@ def floor(n=3):
     path = StackPath(stack, moved)
     y, y1 = state.state, track_stack(stack, moved, state).final.state
     start, _ = _start_point(path, y, state)
-    fresh = lambda: path.evaluate(y1, 1.0)
+
+    def fresh():
+        return path.evaluate(y1, 1.0)
     point = tight(fresh)
 
     def unrated():                  # the start as a command finds it: its s-rates not made
@@ -180,7 +182,9 @@ def main():
         med = {k: statistics.median(v) for k, v in times.items() if v}
         p90 = {k: float(np.percentile(v, 90)) for k, v in times.items() if v}
         medians[n] = med
-        cell = lambda k: f'{med[k]:6.3f} ({p90[k]:5.2f})'
+
+        def cell(k):
+            return f'{med[k]:6.3f} ({p90[k]:5.2f})'
         print(f'{n:>3}  {cell("tracker")}  {cell("naive")}  {cell("before")}  '
               f'{med["naive"] / med["tracker"]:>9.2f}  {med["before"] / med["tracker"]:>10.1f}  '
               f'{statistics.median(steps):>5.0f}  {disagree}/{COMMANDS}')

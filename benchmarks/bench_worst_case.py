@@ -26,8 +26,7 @@ import time
 
 import numpy as np
 
-from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core import simulator as simulator_module
+from tensegrity_ros.core import ModuleParams, simulator as simulator_module
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 
 TICK_NS = 10_000_000            # simulated time between calls (a 100 Hz timer)

@@ -39,9 +39,9 @@ import sys
 import numpy as np
 
 from . import snap_command, tolerance_command
-from .core import InvalidParameterError, ModuleParams, equilibria, track_module
+from .core import equilibria, InvalidParameterError, ModuleParams, track_module
 from .core.start_state import start_state, upright_guess
-from .problem import (APPLY_ORDER, DEFAULT_FIELDS, PARAMETERS, describe, describe_modules,
+from .problem import (APPLY_ORDER, DEFAULT_FIELDS, describe, describe_modules, PARAMETERS,
                       resolve_fields)
 
 #: Names whose value must be > 0, resp. >= 0.
@@ -601,7 +601,7 @@ def _head_text(e):
 
 def exact_stack_equilibria(stack):
     """(records sorted by energy, status) of a one-module stack from the exact solver."""
-    from .core.stack import StackPath, stack_equilibrium_at
+    from .core.stack import stack_equilibrium_at, StackPath
     result = equilibria(stack.modules[0])
     path = StackPath(stack, stack)
     records = [stack_equilibrium_at(stack, path.state_from_angles([[e.theta1, e.theta2]], 0.0))
@@ -611,6 +611,7 @@ def exact_stack_equilibria(stack):
 
 def cmd_stack_solve(args, out):
     import time
+
     from .core.stack import stack_equilibria
     spec = _stack_spec(args)
     if args.rho is not None and args.rhos is not None:
@@ -999,9 +1000,9 @@ def cmd_limit(args, out):
         if v is not None:
             check_domain(name, v)
             values[name] = v
-    design = dict(L1=values.get('L1', 1.0), L2=values.get('L2', 1.0), k=values.get('k', 100.0),
-                  ka=values.get('ka'), kb=values.get('kb'), kc=values.get('kc'),
-                  f3x=values.get('F3x', 0.0), f4x=values.get('F4x', 0.0))
+    design = {'L1': values.get('L1', 1.0), 'L2': values.get('L2', 1.0), 'k': values.get('k', 100.0),
+              'ka': values.get('ka'), 'kb': values.get('kb'), 'kc': values.get('kc'),
+              'f3x': values.get('F3x', 0.0), 'f4x': values.get('F4x', 0.0)}
     c = two_stable_limit(design.pop('L2'), pushing=args.pushing, **design)
     side = 'pushing' if args.pushing else 'pulling'
     if args.json:

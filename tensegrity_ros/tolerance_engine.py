@@ -81,6 +81,7 @@ def _bar(progress, total, description):
     if not progress:
         return None
     from tqdm import tqdm
+
     # one refresh per finished chunk (a few per second at most): none is skipped
     return tqdm(total=total, unit=' ' + description, dynamic_ncols=True, leave=False,
                 mininterval=0.0)
@@ -124,7 +125,7 @@ def _run_dask(function, chunks, processes, scheduler, progress, retries, sizes, 
               fingerprint=None):
     import logging
 
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import as_completed, Client, LocalCluster
 
     t0 = time.perf_counter()
     cluster = client = None

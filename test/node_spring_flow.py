@@ -21,13 +21,12 @@ positive definite.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from scipy.integrate import LSODA
 from scipy.linalg import null_space
-
 
 #: Evaluations of the flow's velocity one flow may use before it gives up (FlowUndecided):
 #: a bounded time on any machine (~4 s).  The flows of test_perfect_chord_ramp_landing.py

@@ -34,9 +34,9 @@ gradients (exact to rounding) and central differences of them for the Hessians.
 """
 from __future__ import annotations
 
-import math
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -520,7 +520,7 @@ class NeckSystem:
             return None
         low = np.linalg.eigvalsh(self.reduced(star, s)[0])[0]
         return star if rest_certified(self, theta, s, star, low, 4.0 * self.n * self.rate(s),
-                                    close) else None
+                                      close) else None
 
     def on_saddle(self, theta, s):
         return stalled_on_saddle(self, theta, s)

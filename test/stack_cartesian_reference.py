@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from tensegrity_ros.core.module import PARAMETER_NAMES, InvalidParameterError
+from tensegrity_ros.core.module import InvalidParameterError, PARAMETER_NAMES
 
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
 _FIXED = 2
@@ -39,10 +39,18 @@ class _Topology:
 
     def __init__(self, n):
         self.n = n
-        a3 = lambda i: 2 + 2 * i
-        a4 = lambda i: 3 + 2 * i
-        a1 = lambda i: 0 if i == 0 else a4(i - 1)
-        a2 = lambda i: 1 if i == 0 else a3(i - 1)
+
+        def a3(i):
+            return 2 + 2 * i
+
+        def a4(i):
+            return 3 + 2 * i
+
+        def a1(i):
+            return 0 if i == 0 else a4(i - 1)
+
+        def a2(i):
+            return 1 if i == 0 else a3(i - 1)
         self.a1, self.a2, self.a3, self.a4 = a1, a2, a3, a4
         self.nodes = 2 + 2 * n
         # springs: (a, b, module, parameter) for ka: A2A3, kb: A1A4, kc: A3A4

@@ -11,11 +11,10 @@ import math
 import numpy as np
 import pytest
 
-from tensegrity_ros.core.module import ModuleParams, InvalidParameterError, gradient, hessian
+from tensegrity_ros.core.analysis import (BRANCH_POINT, Curve, degenerate_curves, FOLD, LIMIT,
+                                          operation_range, OperationRange, two_stable_limit)
 from tensegrity_ros.core.equilibria import equilibria, equilibria_batch
-from tensegrity_ros.core.analysis import (
-    degenerate_curves, operation_range, two_stable_limit, Curve, OperationRange,
-    FOLD, BRANCH_POINT, LIMIT)
+from tensegrity_ros.core.module import gradient, hessian, InvalidParameterError, ModuleParams
 
 K = 100.0
 

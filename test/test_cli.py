@@ -4,16 +4,16 @@ Run in-process through ``main(argv)``; one test runs the installed console scrip
 """
 import json
 import math
+from pathlib import Path
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from installed import installed_script
 from tensegrity_ros.cli import main
-from tensegrity_ros.core import ModuleParams, equilibria, equilibria_batch
+from tensegrity_ros.core import equilibria, equilibria_batch, ModuleParams
 
 # Fig. 8a of the paper: L1 = L2 = 1, F3 = F4 = 5.  C1 (branch point) and C2 (fold)
 # are the roots of the paper's eqs. (15) and (16) at F = 5.
@@ -484,7 +484,7 @@ def test_stack_solve_json_schema(capsys, argv, rhos):
     for e in eqs:
         _check_stack_equilibrium(e, n, rhos)
     # the stable equilibria are where an independent settle from them stays
-    from tensegrity_ros.core.stack import Stack, settle_stack
+    from tensegrity_ros.core.stack import settle_stack, Stack
     stack = Stack(tuple(ModuleParams(**p) for p in params))
     for e in [e for e in eqs if e['stable']][:2]:
         again = settle_stack(stack, np.array(e['theta']) + 1e-3)

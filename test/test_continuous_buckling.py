@@ -10,14 +10,14 @@ The two explicit examples are soft necks (k ~ 10 N/m) whose branch-point landing
 1e-3 in s past the event, is 0.09 and 0.8 rad from the landing minimum at the event's
 load: it was reported there (0.011 and 0.08 rad from the rest point at the event's load).
 """
+from hypothesis import event, example, given, Phase, settings, strategies as st
 import numpy as np
 import pytest
 from scipy.optimize import brentq
-from hypothesis import Phase, event, example, given, settings, strategies as st
 
-from tensegrity_ros.core import ModuleParams, equilibria, track_module
+from tensegrity_ros.core import equilibria, ModuleParams, track_module
 from tensegrity_ros.core.continuation import TrackerSettings
-from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
+from tensegrity_ros.core.stack import settle_stack, Stack, StackPath, track_stack
 from tensegrity_ros.core.start_state import upright_guess
 from tensegrity_ros.core.tolerances import verified_minimum
 

@@ -125,9 +125,9 @@ def test_unequal_rods_unloaded_merge_into_the_flat_state_without_a_jump():
 
 # -- long perfect and 1e-9-imperfect necks under a head load: buckling is no jump ------------
 
-from neck_path_families import paper_neck, upright                      # noqa: E402
-from reference_paths import NeckSystem, angle_distance, flow_to_rest    # noqa: E402
-from tensegrity_ros.core.stack import StackPath, settle_stack, track_stack  # noqa: E402
+from neck_path_families import paper_neck, upright  # noqa: E402
+from reference_paths import angle_distance, flow_to_rest, NeckSystem  # noqa: E402
+from tensegrity_ros.core.stack import settle_stack, StackPath, track_stack  # noqa: E402
 
 #: The reference's (quasi_static_path, 106 s) fold of the perfect N = 10 paper neck under
 #: a head load 0 -> -20 N per top node, after its passage at s = 0.0279813367.

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from oracle_solver import oracle_equilibria, torus_distance
-from tensegrity_ros.core import (ModuleParams, equilibria, equilibria_batch, gradient,
+from tensegrity_ros.core import (equilibria, equilibria_batch, gradient, ModuleParams,
                                  node_positions)
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
@@ -172,7 +172,7 @@ def test_huge_forces_rods_align_with_the_loads(F, direction):
 # ---------------------------------------------------------------------------
 # A continuum of equilibria
 
-CONTINUUM = [dict(rho=rho, ka=ka, kb=kb, kc=kc, L1=L1, L2=L2)
+CONTINUUM = [{'rho': rho, 'ka': ka, 'kb': kb, 'kc': kc, 'L1': L1, 'L2': L2}
              for rho, ka, kb, kc, L1, L2 in [(0.3, 100, 100, 100, 1, 1), (1.7, 20, 300, 55, 0.4, 2.2),
                                              (0.01, 5, 7, 9, 3, 0.2)]]
 
@@ -302,9 +302,9 @@ def test_on_and_near_general_folds():
     points = []
     while len(points) < 400:
         k = rng.uniform(10, 300, 3)
-        base = dict(L1=rng.uniform(0.3, 2.5), L2=rng.uniform(0.3, 2.5), ka=k[0], kb=k[1], kc=k[2],
-                    f3x=rng.normal(0, 10), f3y=rng.normal(0, 20), f4x=rng.normal(0, 10),
-                    f4y=rng.normal(0, 20))
+        base = {'L1': rng.uniform(0.3, 2.5), 'L2': rng.uniform(0.3, 2.5), 'ka': k[0], 'kb': k[1], 'kc': k[2],
+                'f3x': rng.normal(0, 10), 'f3y': rng.normal(0, 20), 'f4x': rng.normal(0, 10),
+                'f4y': rng.normal(0, 20)}
         rhos = np.linspace(0.01, 3, 40)
         counts = [len(equilibria(ModuleParams(rho=r, **base))) for r in rhos]
         for i in np.nonzero(np.diff(counts))[0]:
@@ -344,7 +344,7 @@ def test_batch_blocks_join_seamlessly():
     from tensegrity_ros.core.equilibria import BATCH_BLOCK, equilibria_batch
     rng = np.random.default_rng(5)
     n = 2 * BATCH_BLOCK + 17
-    args = dict(rho=rng.uniform(0.05, 2, n), f3y=rng.uniform(-10, 10, n), f4y=rng.uniform(-10, 10, n))
+    args = {'rho': rng.uniform(0.05, 2, n), 'f3y': rng.uniform(-10, 10, n), 'f4y': rng.uniform(-10, 10, n)}
     whole = equilibria_batch(**args)
     assert whole.theta.shape == (n, 6, 2)
     for start in (0, BATCH_BLOCK - 3, n - 20):
@@ -377,10 +377,10 @@ def test_batch_solves_generic_rows_itself_and_agrees_with_the_scalar_solver(monk
     eq_module = importlib.import_module('tensegrity_ros.core.batch_solver')
     rng = np.random.default_rng(11)
     n = 20_000
-    args = dict(rho=rng.uniform(0.01, 3, n), L1=rng.uniform(0.2, 3, n), L2=rng.uniform(0.2, 3, n),
-                ka=rng.uniform(10, 500, n), kb=rng.uniform(10, 500, n), kc=rng.uniform(10, 500, n),
-                f3x=rng.normal(0, 20, n), f3y=rng.normal(0, 20, n), f4x=rng.normal(0, 20, n),
-                f4y=rng.normal(0, 20, n), m1=rng.uniform(0, 2, n), m2=rng.uniform(0, 2, n))
+    args = {'rho': rng.uniform(0.01, 3, n), 'L1': rng.uniform(0.2, 3, n), 'L2': rng.uniform(0.2, 3, n),
+            'ka': rng.uniform(10, 500, n), 'kb': rng.uniform(10, 500, n), 'kc': rng.uniform(10, 500, n),
+            'f3x': rng.normal(0, 20, n), 'f3y': rng.normal(0, 20, n), 'f4x': rng.normal(0, 20, n),
+            'f4y': rng.normal(0, 20, n), 'm1': rng.uniform(0, 2, n), 'm2': rng.uniform(0, 2, n)}
     scalar_rows = []
     solve_scalar = eq_module._solve_scalar
     monkeypatch.setattr(eq_module, '_solve_scalar',

@@ -10,8 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from tensegrity_ros.core import (ModuleParams, equilibria, equilibria_batch, hessian,
-                                 node_positions)
+from tensegrity_ros.core import equilibria, equilibria_batch, hessian, ModuleParams, node_positions
 from tensegrity_ros.core.equilibria import DEGENERACY_TOL
 
 TWO_PI = 2 * math.pi

@@ -43,10 +43,9 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from tensegrity_ros.core import ModuleParams, equilibria
-from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
-
 from node_spring_flow import NodeSpringNeck, released_past_a_branch_point, rest_point
+from tensegrity_ros.core import equilibria, ModuleParams
+from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics

@@ -9,18 +9,18 @@ points whose equilibria are all well-conditioned (|lambda_min| > 1e-6
 """
 import math
 
+from hypothesis import event, given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, event, given, settings, strategies as st
 
-from tensegrity_ros.core import ModuleParams, equilibria, equilibria_batch, gradient
+from tensegrity_ros.core import equilibria, equilibria_batch, gradient, ModuleParams
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics
 
 
-SETTINGS = dict(derandomize=True, deadline=None, database=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+SETTINGS = {'derandomize': True, 'deadline': None, 'database': None,
+            'suppress_health_check': [HealthCheck.too_slow, HealthCheck.filter_too_much]}
 TWO_PI = 2 * math.pi
 WELL_CONDITIONED = 1e-6
 

@@ -98,14 +98,13 @@ import os
 import numpy as np
 import pytest
 
+from reference_paths import (angle_distance, critical_solve, FIELDS, flow_to_rest, ModuleSystem,
+                             NeckSystem, other_sides, quasi_static_path, settle_reference,
+                             values_of)
 from tensegrity_ros.core import ModuleParams, settle, track_module
 from tensegrity_ros.core.continuation import TrackingError
-from tensegrity_ros.core.stack import Stack, settle_stack, stack_equilibrium_at, track_stack
+from tensegrity_ros.core.stack import settle_stack, Stack, stack_equilibrium_at, track_stack
 from tensegrity_ros.core.supported_range import LOAD_RATIO
-
-from reference_paths import (FIELDS, ModuleSystem, NeckSystem, angle_distance, critical_solve,
-                             flow_to_rest, other_sides, quasi_static_path, settle_reference,
-                             values_of)
 
 #: A reported jump and the reference's must be this close in s.
 LOCATION_TOL = 1e-7
@@ -391,7 +390,7 @@ def test_asymmetries_around_c1(name, base, eps):
 
 # -- hypothesis: every reported jump lands on a stable equilibrium, a finite distance away -----
 
-from hypothesis import HealthCheck, example, given, settings, strategies as st  # noqa: E402
+from hypothesis import example, given, HealthCheck, settings, strategies as st  # noqa: E402
 
 #: Fixed-seed profile (derandomized: the same examples in every run).
 PROPERTY = settings(max_examples=25, deadline=None, derandomize=True,
@@ -689,8 +688,8 @@ def test_n3_nearly_symmetric_neck_head_load_folds_where_the_tracker_says():
     steepest descent, which the reference now takes; it used to take the one with the
     lower landing (U = 253.63 J), kept as its alternative.  The reference must land on
     the tracker's state itself, not only on one of its ways out."""
-    start, end = paper_neck(3, 0.6, 0.0, dict(ka=100.0000001)), \
-        paper_neck(3, 0.6, -40.0, dict(ka=100.0000001))
+    start, end = paper_neck(3, 0.6, 0.0, {'ka': 100.0000001}), \
+        paper_neck(3, 0.6, -40.0, {'ka': 100.0000001})
     got, ref = compare_neck(start, end, settle_stack(start, upright(3, 0.6)).theta)
     (mine,), (theirs,) = got.jumps, ref.jumps
     assert mine.kind == theirs.kind == 'fold'
@@ -710,7 +709,7 @@ def near_symmetric_neck(n, ramp, kind, eps):
     """(start, end) stacks: ``kind`` 'ka' (module 0 ka = 100 (1 + eps)), 'L2' (module 0
     L2 = 1 + eps) or 'fx' (a horizontal head-load component, eps times the load)."""
     head = -40.0 if ramp == 'head' else -5.0
-    first = {'ka': dict(ka=100.0 * (1.0 + eps)), 'L2': dict(L2=1.0 + eps), 'fx': None}[kind]
+    first = {'ka': {'ka': 100.0 * (1.0 + eps)}, 'L2': {'L2': 1.0 + eps}, 'fx': None}[kind]
     fx = abs(head) * eps if kind == 'fx' else 0.0
 
     def stack(rho, load):
@@ -822,8 +821,8 @@ def test_perfect_neck_against_the_reference(n, ramp):
                     reason='~2 min of reference each: FULL_NECKS=1 (CI) runs them')
 @pytest.mark.parametrize('ka_error', [0.0, 1e-9])
 def test_ten_module_neck_under_a_head_load_against_the_reference(ka_error):
-    start = paper_neck(10, 0.6, 0.0, dict(ka=100.0 * (1.0 + ka_error)) if ka_error else None)
-    end = paper_neck(10, 0.6, -20.0, dict(ka=100.0 * (1.0 + ka_error)) if ka_error else None)
+    start = paper_neck(10, 0.6, 0.0, {'ka': 100.0 * (1.0 + ka_error)} if ka_error else None)
+    end = paper_neck(10, 0.6, -20.0, {'ka': 100.0 * (1.0 + ka_error)} if ka_error else None)
     got, ref = compare_neck(start, end, settle_stack(start, upright(10, 0.6)).theta)
     assert [j.kind for j in got.jumps] == ['fold']
 

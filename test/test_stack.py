@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from tensegrity_ros.core import (BRANCH_POINT, FOLD, ModuleParams, ModulePath, equilibria, settle,
-                                  track_module)
-from tensegrity_ros.core.stack import (Stack, StackJump, StackPassage, StackPath, settle_stack,
-                                       stack_equilibria, stack_equilibrium_at, track_stack)
+from tensegrity_ros.core import (BRANCH_POINT, equilibria, FOLD, ModuleParams, ModulePath, settle,
+                                 track_module)
+from tensegrity_ros.core.stack import (settle_stack, Stack, stack_equilibria, stack_equilibrium_at,
+                                       StackJump, StackPassage, StackPath, track_stack)
 
 G = 9.80665
 

@@ -9,10 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from tensegrity_ros.core import InvalidParameterError, ModuleParams, equilibria, settle, track_module
-from tensegrity_ros.core.supported_range import (LENGTH_RATIO, LOAD_RATIO, STIFFNESS_RATIO,
-                                                 OutOfRangeError, check_supported,
-                                                 out_of_range_reason)
+from tensegrity_ros.core import (equilibria, InvalidParameterError, ModuleParams, settle,
+                                 track_module)
+from tensegrity_ros.core.supported_range import (check_supported, LENGTH_RATIO, LOAD_RATIO,
+                                                 out_of_range_reason, OutOfRangeError,
+                                                 STIFFNESS_RATIO)
 
 
 def scaled(p, length, stiffness):
@@ -73,12 +74,12 @@ def test_jumps_are_scale_invariant(length, stiffness):
 
 
 @pytest.mark.parametrize('change, group', [
-    (dict(f3x=1e10), 'load/(k L)'),          # issue 10 item 2: F/(kL) = 1e8 on the default module
-    (dict(L1=1e49), 'L2/L1'),
-    (dict(ka=1e49), 'kb/ka'),
-    (dict(ka=1e-50, kb=1e50), 'kb/ka'),
-    (dict(rho=1e4), 'rho/L1'),
-    (dict(kc=1e6), 'kc/ka'),
+    ({'f3x': 1e10}, 'load/(k L)'),          # issue 10 item 2: F/(kL) = 1e8 on the default module
+    ({'L1': 1e49}, 'L2/L1'),
+    ({'ka': 1e49}, 'kb/ka'),
+    ({'ka': 1e-50, 'kb': 1e50}, 'kb/ka'),
+    ({'rho': 1e4}, 'rho/L1'),
+    ({'kc': 1e6}, 'kc/ka'),
 ])
 def test_outside_the_range_is_refused_with_the_group_named(change, group):
     params = ModuleParams(rho=0.75).with_(**change)

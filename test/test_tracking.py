@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq, fsolve
 
-from tensegrity_ros.core import (BRANCH_POINT, FOLD, ModuleParams, TrackingError, equilibria,
-                                 settle, track, track_module)
+from tensegrity_ros.core import (BRANCH_POINT, equilibria, FOLD, ModuleParams, settle, track,
+                                 track_module, TrackingError)
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics
@@ -267,7 +267,7 @@ def test_tracker_refuses_an_unstable_start():
 
 from hypothesis import given, settings as hyp_settings, strategies as st  # noqa: E402
 
-from tensegrity_ros.core.continuation import TrackerSettings, positive_definite  # noqa: E402
+from tensegrity_ros.core.continuation import positive_definite, TrackerSettings  # noqa: E402
 from tensegrity_ros.core.stack import StackEquilibrium  # noqa: E402
 
 

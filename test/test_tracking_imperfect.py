@@ -6,11 +6,11 @@ extended systems in core/analysis.py).
 """
 import math
 
+from hypothesis import assume, given, settings, strategies as st
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings, strategies as st
 
-from tensegrity_ros.core import BRANCH_POINT, FOLD, ModuleParams, equilibria, settle, track_module
+from tensegrity_ros.core import BRANCH_POINT, equilibria, FOLD, ModuleParams, settle, track_module
 from tensegrity_ros.core.analysis import operation_range
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
@@ -28,14 +28,14 @@ def wrapped(a, b):
 # before it and stays stable (issue 10 items 1 and 3: 1 to 3 false folds each, the real one
 # placed up to 3.3e-6 early).
 IMPERFECT = {
-    'F3 5.001': dict(F3=5.001),
-    'F3 5.01': dict(F3=5.01),
-    'F3 5.000001': dict(F3=5.000001),
-    'kb 100.1': dict(kb=100.1),
-    'ka 100.01': dict(ka=100.01),
-    'ka 100 (1 + 1e-9)': dict(ka=100 * (1 + 1e-9)),
-    'f3x 1e-6': dict(f3x=1e-6),
-    'L2 1 + 1e-7': dict(L2=1 + 1e-7),
+    'F3 5.001': {'F3': 5.001},
+    'F3 5.01': {'F3': 5.01},
+    'F3 5.000001': {'F3': 5.000001},
+    'kb 100.1': {'kb': 100.1},
+    'ka 100.01': {'ka': 100.01},
+    'ka 100 (1 + 1e-9)': {'ka': 100 * (1 + 1e-9)},
+    'f3x 1e-6': {'f3x': 1e-6},
+    'L2 1 + 1e-7': {'L2': 1 + 1e-7},
 }
 
 
@@ -114,10 +114,10 @@ def test_settle_on_a_saddle_lands_on_the_lower_minimum(params):
 def test_every_jump_lands_on_another_stable_equilibrium(which, exponent, sign, target, back):
     """Near C1 with an asymmetry of 1e-2 .. 1e-9: each reported jump lands on a stable
     equilibrium of the exact solver, a finite distance from where it left."""
-    change = {'F3': dict(F3=5 + sign * 10.0 ** -exponent),
-              'ka': dict(ka=100 * (1 + sign * 10.0 ** -exponent)),
-              'f3x': dict(f3x=sign * 10.0 ** -exponent),
-              'L2': dict(L2=1 + sign * 10.0 ** -exponent)}[which]
+    change = {'F3': {'F3': 5 + sign * 10.0 ** -exponent},
+              'ka': {'ka': 100 * (1 + sign * 10.0 ** -exponent)},
+              'f3x': {'f3x': sign * 10.0 ** -exponent},
+              'L2': {'L2': 1 + sign * 10.0 ** -exponent}}[which]
     start = settle(imperfect(0.5, change), [-1.0, -1.0])
     there = track_module(imperfect(0.5, change), imperfect(target, change), start.theta)
     runs = [there]

@@ -49,7 +49,7 @@ import math
 import numpy as np
 from scipy.linalg.lapack import zgeev as _zgeev
 
-from .classification import EquilibriumSet, _build
+from .classification import _build, EquilibriumSet
 from .module import ModuleParams
 
 #: A root z of the polynomial is a real angle candidate if | ln|z| | is below this.

@@ -34,8 +34,8 @@ from scipy.linalg.lapack import dsygv as _dsygv
 from .module import InvalidParameterError, mirror_symmetric
 from .stack_flows import StackFlows
 from .stack_linkage import StackLinkage
-from .stack_model import (Stack, _Point, _Values, _concatenate, _null_basis, _solve_gram,
-                          _topology, _vdot)
+from .stack_model import (_concatenate, _null_basis, _Point, _solve_gram, _topology, _Values,
+                          _vdot, Stack)
 from .stack_reporting import StackReporting
 
 

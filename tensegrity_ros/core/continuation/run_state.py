@@ -13,10 +13,10 @@ import math
 
 import numpy as np
 
-from .. import bounded_work
 from .problem import SubPath
 from .settings import UNRESOLVED_UPDATE
 from .step_rules import energy_consistent, forward_rate, positive_definite
+from .. import bounded_work
 
 
 def solve(matrix, rhs):

@@ -13,15 +13,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..bounded_work import Budget
-from ..tolerances import BRANCH_POINT_CERTIFIED
 from . import branch_switching, certificates, lander, linkage_limits, locator
 from .flows import slide
-from .follower import Follower, Move, Stop, out_of_budget
+from .follower import Follower, Move, out_of_budget, Stop
 from .problem import PathProblem
 from .results import Track, TrackingError
 from .run_state import RunState
 from .settings import LOCATION_TOL, TrackerSettings
+from ..bounded_work import Budget
+from ..tolerances import BRANCH_POINT_CERTIFIED
 
 
 class Events:

@@ -141,7 +141,7 @@ def main():
     medians = {name: _summary(name, found) for name, found in answers.items()}
     if args.reference:
         verdicts = [a['reference'].split(':')[0] for a in answers['this tree'] if 'reference' in a]
-        print(f'against the reference: {dict((v, verdicts.count(v)) for v in set(verdicts))}')
+        print(f'against the reference: { {v: verdicts.count(v) for v in set(verdicts)} }')
     if args.baseline:
         print(f'median ratio baseline / this tree: '
               f'{medians["baseline"] / medians["this tree"]:.2f}')

@@ -644,7 +644,7 @@ def _print_neck(runs, args):
           f'{args.node_executor}')
     print('every command sent is one of: answered (a joint_states reported it; late = more '
           f'than {LATE_US / 1000:g} ms after it was sent, a backlog) or unanswered; the '
-          'node\'s unanswered split by its /diagnostics: coalesced = acted on through a later '
+          "node's unanswered split by its /diagnostics: coalesced = acted on through a later "
           'command (node behind), rejected, untraced = lost without a trace, unseen = '
           'processed but no joint_states of it arrived')
     print(f'{"run":>3} {"process":<17} {"sent":>6} {"answered":>8} {"late":>6} '

@@ -43,7 +43,7 @@ from tensegrity_ros.core.stack import _end_record, settle_stack, Stack, StackPat
 from tensegrity_ros.core.stack_fast_step import _dgesv, _dgetrf, _start_point
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
-from stack_cartesian_reference import CartesianStackPath  # noqa: E402  (the "before")
+from stack_cartesian_reference import CartesianStackPath  # noqa: E402, I100  (the "before"; test/ on sys.path first)
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
@@ -171,7 +171,7 @@ def main():
     rng = np.random.default_rng(0)
     load = os.getloadavg()[0]
     clock = 'thread CPU time' if CLOCK is time.thread_time else 'wall clock'
-    print(f'small command: one module\'s rho +-{STEP:g} m, {COMMANDS} successive commands per N, '
+    print(f"small command: one module's rho +-{STEP:g} m, {COMMANDS} successive commands per N, "
           f'best of {REPEAT} each ({clock}); median (p90) in ms; {os.cpu_count()} CPUs, '
           f'load {load:.1f}')
     print(f'{"N":>3}  {"tracker":>13}  {"naive":>13}  {"before":>13}  {"naive/trk":>9}  '

@@ -257,7 +257,7 @@ def build_parser():
     p = sub.add_parser(
         'limit', allow_abbrev=False,          # --F3 must not silently mean --F3x
         help='point C: the largest forces with two stable equilibria',
-        description='Point C of the paper\'s fig. 6: the tip of the 2-stable region of '
+        description="Point C of the paper's fig. 6: the tip of the 2-stable region of "
                     '(rho, F3, F4) space, an equilibrium with H = 0. No point with F3 and F4 '
                     'both beyond C has two stable equilibria. --pushing: the mirror image '
                     '(negative forces).')

@@ -732,6 +732,7 @@ class Undecided(RuntimeError):
 
 class _Work:
     """Evaluations spent by the flows of the outermost reference call under way."""
+
     spent = 0
     limit = None
 

@@ -11,10 +11,14 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from tensegrity_ros.core.module import InvalidParameterError, PARAMETER_NAMES
+
+if TYPE_CHECKING:       # the annotations' Stack only: the reference uses none of its code
+    from tensegrity_ros.core.stack import Stack
 
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
 _FIXED = 2

@@ -340,7 +340,6 @@ def test_near_fold_with_unresolved_polynomial_roots():
 
 def test_batch_blocks_join_seamlessly():
     """A batch larger than one block gives exactly what block-sized calls give."""
-    from tensegrity_ros.core import equilibria as eq_module
     from tensegrity_ros.core.equilibria import BATCH_BLOCK, equilibria_batch
     rng = np.random.default_rng(5)
     n = 2 * BATCH_BLOCK + 17

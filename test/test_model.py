@@ -324,11 +324,11 @@ def test_forces_may_have_any_sign():
 
 
 def test_message_names_parameter_and_value():
-    with pytest.raises(InvalidParameterError, match=r"kb.*-3\.5"):
+    with pytest.raises(InvalidParameterError, match=r'kb.*-3\.5'):
         ModuleParams(rho=1.0, kb=-3.5)
-    with pytest.raises(InvalidParameterError, match=r"L2.*nan"):
+    with pytest.raises(InvalidParameterError, match=r'L2.*nan'):
         ModuleParams.paper(0.5, L2=float('nan'))
-    with pytest.raises(InvalidParameterError, match="rho"):
+    with pytest.raises(InvalidParameterError, match='rho'):
         ModuleParams.paper(0.0)
     assert issubclass(InvalidParameterError, ValueError)
 

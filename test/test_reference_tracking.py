@@ -95,6 +95,7 @@ it two half-branches leave the change point downhill, and both land on the steep
 import math
 import os
 
+from hypothesis import example, given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
 
@@ -389,8 +390,6 @@ def test_asymmetries_around_c1(name, base, eps):
 
 
 # -- hypothesis: every reported jump lands on a stable equilibrium, a finite distance away -----
-
-from hypothesis import example, given, HealthCheck, settings, strategies as st  # noqa: E402
 
 #: Fixed-seed profile (derandomized: the same examples in every run).
 PROPERTY = settings(max_examples=25, deadline=None, derandomize=True,

@@ -1,12 +1,15 @@
 """Tracker: fig. 8 of the paper end to end, exact event locations, hysteresis, generic problems."""
 import math
 
+from hypothesis import given, settings as hyp_settings, strategies as st
 import numpy as np
 import pytest
 from scipy.optimize import brentq, fsolve
 
 from tensegrity_ros.core import (BRANCH_POINT, equilibria, FOLD, ModuleParams, settle, track,
                                  track_module, TrackingError)
+from tensegrity_ros.core.continuation import positive_definite, TrackerSettings
+from tensegrity_ros.core.stack import StackEquilibrium
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics
@@ -264,11 +267,6 @@ def test_tracker_refuses_an_unstable_start():
 
 
 # -- the tracker's definiteness and a tracked neck state's "stable" agree (issue 10) ------
-
-from hypothesis import given, settings as hyp_settings, strategies as st  # noqa: E402
-
-from tensegrity_ros.core.continuation import positive_definite, TrackerSettings  # noqa: E402
-from tensegrity_ros.core.stack import StackEquilibrium  # noqa: E402
 
 
 @hyp_settings(max_examples=300, deadline=None, derandomize=True)

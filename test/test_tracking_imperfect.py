@@ -10,7 +10,7 @@ from hypothesis import assume, given, settings, strategies as st
 import numpy as np
 import pytest
 
-from tensegrity_ros.core import BRANCH_POINT, equilibria, FOLD, ModuleParams, settle, track_module
+from tensegrity_ros.core import equilibria, FOLD, ModuleParams, settle, track_module
 from tensegrity_ros.core.analysis import operation_range
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.

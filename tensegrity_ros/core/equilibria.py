@@ -6,7 +6,8 @@ for maps) and :mod:`.classification` (Morse type, the records).  This module gat
 their public names under the path tools and tests have always imported.
 """
 from .batch_solver import BATCH_BLOCK, equilibria_batch, EquilibriumBatch
-# record builders other core modules imported from here before the split
+# _build, _eigenvalues_2x2 (the noqa): record builders other core modules imported from
+# here before the split
 from .classification import (_build, _eigenvalues_2x2, classify, DEGENERACY_TOL,  # noqa: F401
                              Equilibrium, EquilibriumSet, hessian_eigenvalues, KIND_DEGENERATE,
                              KIND_MAXIMUM, KIND_MINIMUM, KIND_SADDLE)

@@ -15,7 +15,7 @@ import numpy as np
 from . import continuation as _continuation
 from .classification import _build, _eigenvalues_2x2, Equilibrium
 from .continuation import TrackerSettings
-from .module import mirror_symmetric, ModuleParams, PARAMETER_NAMES
+from .module import mirror_symmetric, ModuleParams
 from .tolerances import DEGENERACY_TOL, MARGIN_CERTIFIED, verified_minimum
 
 

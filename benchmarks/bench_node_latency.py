@@ -576,8 +576,9 @@ def neck_main(argv=None):
     target), and ``untraced`` = sent -
     processed - coalesced - rejected were lost without a trace (0 unless the transport
     dropped them); ``late`` answers came more than LATE_US after their command: the relay
-    never coalesces, so when it falls behind it shows here (and in p99), not as unanswered.  Target: every command answered (nothing coalesced or lost: the node
-    keeps up at 1 kHz) and node p50 within 2x the relay's, in every run."""
+    never coalesces, so when it falls behind it shows here (and in p99), not as unanswered.
+    Target: every command answered (nothing coalesced or lost: the node keeps up at 1 kHz) and node
+    p50 within 2x the relay's, in every run."""
     parser = argparse.ArgumentParser(description=neck_main.__doc__.split('\n')[0])
     parser.add_argument('--neck', action='store_true', help='run the neck case (this one)')
     parser.add_argument('--neck-relay', action='store_true', help=argparse.SUPPRESS)

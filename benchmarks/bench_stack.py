@@ -22,9 +22,9 @@ Each command is timed ``REPEAT`` times (env BENCH_REPEAT, default 3) and the bes
 kept (the machine is shared; the best of a few is the cost of the code, not of the
 neighbours); medians and p90 are over the commands.  BENCH_CLOCK=cpu times with this
 thread's CPU clock instead of the wall clock (on a loaded machine the wall clock also
-counts the time spent waiting for a CPU; both columns of a run use the same clock).  Targets (issue 14): N = 3 at
-most 0.15 ms and faster than naive; N = 10 at most 0.5 ms; N = 1 within 1.5x of the
-module tracker.
+counts the time spent waiting for a CPU; both columns of a run use the same clock).  Targets
+(issue 14): N = 3 at most 0.15 ms and faster than naive; N = 10 at most 0.5 ms; N = 1 within
+1.5x of the module tracker.
 
     python benchmarks/bench_stack.py
 """
@@ -43,7 +43,8 @@ from tensegrity_ros.core.stack import _end_record, settle_stack, Stack, StackPat
 from tensegrity_ros.core.stack_fast_step import _dgesv, _dgetrf, _start_point
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
-from stack_cartesian_reference import CartesianStackPath  # noqa: E402, I100  (the "before"; test/ on sys.path first)
+# the "before"; I100: it cannot sort with the imports above, it needs test/ on sys.path first
+from stack_cartesian_reference import CartesianStackPath  # noqa: E402, I100
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
@@ -163,7 +164,8 @@ def floor(n=3):
     root_time = tight(lambda: naive(stack, moved, y))
     print(f'floor N = {n} (parts timed alone, us): ' + ', '.join(
         f'{k} {v:.1f}' for k, v in parts.items()))
-    print(f'  sum {total:.1f} us; whole verified step {step:.1f} us; naive root {root_time:.1f} us; '
+    print(f'  sum {total:.1f} us; whole verified step {step:.1f} us; '
+          f'naive root {root_time:.1f} us; '
           f'floor/naive {total / root_time:.2f}, step/naive {step / root_time:.2f}')
 
 

@@ -263,8 +263,7 @@ def build_parser():
                     '(negative forces).')
     group = p.add_argument_group('design parameters')
     for name in ('L1', 'L2', 'k', 'ka', 'kb', 'kc', 'F3x', 'F4x'):
-        group.add_argument(f'--{name}', type=finite_float, metavar='X',
-                           help=PARAMETERS[name][1])
+        group.add_argument(f'--{name}', type=finite_float, metavar='X', help=PARAMETERS[name][1])
     p.add_argument('--pushing', action='store_true',
                    help='pushing forces (F3, F4 < 0) instead of pulling')
     p.add_argument('--json', action='store_true', help='machine-readable output')
@@ -1000,9 +999,9 @@ def cmd_limit(args, out):
         if v is not None:
             check_domain(name, v)
             values[name] = v
-    design = {'L1': values.get('L1', 1.0), 'L2': values.get('L2', 1.0), 'k': values.get('k', 100.0),
-              'ka': values.get('ka'), 'kb': values.get('kb'), 'kc': values.get('kc'),
-              'f3x': values.get('F3x', 0.0), 'f4x': values.get('F4x', 0.0)}
+    design = {'L1': values.get('L1', 1.0), 'L2': values.get('L2', 1.0),
+              'k': values.get('k', 100.0), 'ka': values.get('ka'), 'kb': values.get('kb'),
+              'kc': values.get('kc'), 'f3x': values.get('F3x', 0.0), 'f4x': values.get('F4x', 0.0)}
     c = two_stable_limit(design.pop('L2'), pushing=args.pushing, **design)
     side = 'pushing' if args.pushing else 'pulling'
     if args.json:

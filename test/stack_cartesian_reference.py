@@ -266,7 +266,8 @@ class CartesianStackPath:
     def descent(self, y, s):
         """Overdamped velocity: the projected force plus a pull back onto the constraints."""
         x, mu, d_spring, d_rigid = self._parts(y, s)
-        grad = (self._internal_forces(d_spring, d_rigid, np.zeros_like(mu)) - self._loads)[_FIXED:].ravel()
+        grad = (self._internal_forces(d_spring, d_rigid, np.zeros_like(mu))
+                - self._loads)[_FIXED:].ravel()
         jc = self._constraint_jacobian(d_rigid)
         # Damped (Levenberg) projection: smooth through kinematic singularities of the
         # stack, where rods fold flat onto a chord and the constraint rows degenerate.
@@ -292,7 +293,8 @@ class CartesianStackPath:
             y[:top.n_var] -= jc.T @ _solve_gram(jc, c)
         x, mu, d_spring, d_rigid = self._parts(y, s)
         jc = self._constraint_jacobian(d_rigid)
-        grad = (self._internal_forces(d_spring, d_rigid, np.zeros_like(mu)) - self._loads)[_FIXED:].ravel()
+        grad = (self._internal_forces(d_spring, d_rigid, np.zeros_like(mu))
+                - self._loads)[_FIXED:].ravel()
         y[top.n_var:] = -_solve_gram(jc, jc @ grad)
         return y
 

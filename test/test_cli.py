@@ -667,7 +667,8 @@ def test_stack_cli_does_not_import_rclpy_or_matplotlib():
 # exact boundaries over a map; operation range; point C
 
 def paper_polynomials(F):
-    """Coefficients (in rho, highest first) of the paper's eqs. (15) and (16) at F (L = 1, k = 100)."""
+    """Coefficients (in rho, highest first) of the paper's eqs. (15) and (16) at F
+    (L = 1, k = 100)."""
     p15 = [64e12, 0, 48e8 * F**2, 0, 12e4 * F**4 - 16e8 * F**2, 0, F**6]
     p16 = [64e12, 0, 48e8 * F**2 - 192e12, 0, 12e4 * F**4 + 336e8 * F**2 + 192e12, 0,
            F**6 - 12e4 * F**4 + 48e8 * F**2 - 64e12]
@@ -742,7 +743,8 @@ def test_limit_point_c(capsys):
     doc = run_json(capsys, 'limit', '--L2', 1)
     assert doc['F3'] == pytest.approx(70.7106781187, abs=1e-6)
     assert doc['F4'] == pytest.approx(70.7106781187, abs=1e-6)
-    assert doc['rho'] == pytest.approx(0.5 / math.sqrt(2), abs=1e-9)     # L1 L2 / (2 sqrt(L1^2 + L2^2))
+    # rho = L1 L2 / (2 sqrt(L1^2 + L2^2))
+    assert doc['rho'] == pytest.approx(0.5 / math.sqrt(2), abs=1e-9)
     doc = run_json(capsys, 'limit', '--L2', 1, '--pushing')
     assert doc['F3'] == pytest.approx(-70.7106781187, abs=1e-6) and doc['side'] == 'pushing'
     doc = run_json(capsys, 'limit', '--L2', 1.5, '--k', 50)

@@ -1,6 +1,7 @@
 """The ``equilibrium`` status filled in place (ros_conversions.EquilibriumStatusBuffer,
-only the changed values formatted again) against one built afresh: the same level, texts and key/value pairs, whatever
-state the reused message held before (another module, a jump, a failure, a warning)."""
+only the changed values formatted again) against one built afresh: the same level, texts and
+key/value pairs, whatever state the reused message held before (another module, a jump, a failure,
+a warning)."""
 from diagnostic_msgs.msg import DiagnosticStatus
 from hypothesis import given, settings, strategies as st
 from rclpy.serialization import deserialize_message, serialize_message

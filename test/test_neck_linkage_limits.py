@@ -196,10 +196,12 @@ def test_a_buckling_next_to_a_linkage_limit_is_the_reference_paths():
     each takes turns on rounding (the Nehalem BLAS kernel's tracker took the other)."""
     def neck(rho1):
         return Stack((
-            ModuleParams(rho=0.15, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02),
-            ModuleParams(rho=rho1, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02),
-            ModuleParams(rho=0.09, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02,
-                         f3y=1.0, f4y=1.0)))
+            ModuleParams(rho=0.15, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0,
+                         m1=0.02, m2=0.02),
+            ModuleParams(rho=rho1, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0,
+                         m1=0.02, m2=0.02),
+            ModuleParams(rho=0.09, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0,
+                         m1=0.02, m2=0.02, f3y=1.0, f4y=1.0)))
     state = np.array([0.28968699, 2.85190566, 0.78366205, 2.3579306, 0.74311249, 2.39848016,
                       1.89924432, 0.78994397])
     start, end = neck(0.08), neck(0.13)
@@ -365,7 +367,8 @@ def test_a_command_from_two_flat_modules_leaves_them():
     track = track_stack(start, end, held)
     assert track.status == 'ok', track.message
     for jump in track.jumps:
-        s = (jump.landing_stack.modules[0].rho - start.modules[0].rho) / (0.12 - start.modules[0].rho)
+        rho0 = start.modules[0].rho
+        s = (jump.landing_stack.modules[0].rho - rho0) / (0.12 - rho0)
         assert_stable_for_the_reference(start, end, jump.to_theta, s)
     assert_stable_for_the_reference(end, end, track.final.theta, 0.0)
 

@@ -22,8 +22,8 @@ POSITION_TOL = 1e-8
 
 def _base(rng):
     k = rng.uniform(5.0, 500.0, 3)                       # three different stiffnesses
-    return {'rho': rng.uniform(0.01, 3.0), 'L1': rng.uniform(0.2, 3.0), 'L2': rng.uniform(0.2, 3.0),
-            'ka': k[0], 'kb': k[1], 'kc': k[2]}
+    return {'rho': rng.uniform(0.01, 3.0), 'L1': rng.uniform(0.2, 3.0),
+            'L2': rng.uniform(0.2, 3.0), 'ka': k[0], 'kb': k[1], 'kc': k[2]}
 
 
 def _forces(rng, size):

@@ -101,8 +101,10 @@ def test_mirror_symmetry(p):
         same_set(a, b, 1e-9, transform=lambda t: -t)
         for e in a:
             o = min(b, key=lambda o: torus_distance(-e.theta, o.theta))
-            assert o.energy == np.float64(e.energy) or abs(o.energy - e.energy) <= 1e-9 * (1 + abs(e.energy))
-            assert np.allclose(o.eigenvalues, e.eigenvalues, rtol=1e-7, atol=1e-9 * max(map(abs, e.eigenvalues)))
+            assert (o.energy == np.float64(e.energy)
+                    or abs(o.energy - e.energy) <= 1e-9 * (1 + abs(e.energy)))
+            assert np.allclose(o.eigenvalues, e.eigenvalues, rtol=1e-7,
+                               atol=1e-9 * max(map(abs, e.eigenvalues)))
     # rounding-proof form
     for e in a:
         assert min(torus_distance(-e.theta, o.theta) for o in b) <= 1e-4
@@ -162,7 +164,8 @@ def test_batch_equals_single(points):
         for t, ev in zip(b.theta[i][valid], b.eigenvalues[i][valid]):
             e = min(s, key=lambda e: torus_distance(t, e.theta))
             assert torus_distance(t, e.theta) <= 1e-9
-            assert np.allclose(ev, e.eigenvalues, rtol=1e-7, atol=1e-9 * max(map(abs, e.eigenvalues)))
+            assert np.allclose(ev, e.eigenvalues, rtol=1e-7,
+                               atol=1e-9 * max(map(abs, e.eigenvalues)))
         assert np.array_equal(b.stable[i][valid],
                               [min(s, key=lambda e: torus_distance(t, e.theta)).stable
                                for t in b.theta[i][valid]])

@@ -726,8 +726,8 @@ def compare_near_symmetric(n, ramp, kind, eps):
     return compare_neck(start, end, settle_stack(start, upright(n, rho)).theta)
 
 
-NEAR_SYMMETRIC_CASES = [(ramp, kind, eps) for ramp in ('head', 'rho') for kind in ('ka', 'L2', 'fx')
-                        for eps in NEAR_SYMMETRIC_EPS]
+NEAR_SYMMETRIC_CASES = [(ramp, kind, eps) for ramp in ('head', 'rho')
+                        for kind in ('ka', 'L2', 'fx') for eps in NEAR_SYMMETRIC_EPS]
 
 
 @pytest.mark.numerics
@@ -740,7 +740,8 @@ def test_near_symmetric_one_module_neck(ramp, kind, eps):
 
 #: N = 2 and 3 paths run by default (each neck reference path takes 40-90 s alone on
 #: this machine); FULL_NECKS=1 in the environment runs the whole grid (see the docstring).
-NEAR_SYMMETRIC_NECKS = [(2, 'head', 'ka', 1e-2), (2, 'head', 'fx', 1e-9), (2, 'head', 'L2', 1e-6)] \
+NEAR_SYMMETRIC_NECKS = [(2, 'head', 'ka', 1e-2), (2, 'head', 'fx', 1e-9),
+                        (2, 'head', 'L2', 1e-6)] \
     + [(2, 'rho', kind, eps) for kind in ('ka', 'L2', 'fx') for eps in NEAR_SYMMETRIC_EPS] \
     + [(3, 'rho', 'ka', 1e-2), (3, 'rho', 'L2', 1e-9), (3, 'rho', 'fx', 1e-4)]
 if os.environ.get('FULL_NECKS') == '1':
@@ -782,8 +783,8 @@ def test_perfect_module_passes_its_flat_pitchfork_like_the_reference(rho_end):
 #: reference's own Hessian turns indefinite between s* - 1e-9 and s*); the tracker lands
 #: at m0 (-pi/2, -pi/2), m1 (2.1631, 0.6347), m2 (-0.8941, -1.8253) (U = 289.32 J), the
 #: reference, past module 0's and module 1's change points (steepest half-branches), on
-#: it or its mirror image (asserted below).  With the lower-landing rule it landed on m0 = m1 = (-1.3316,
-#: -1.3316), m2 (-1.3377, -1.3377) (U = 262.43 J); the path comparison accepted the
+#: it or its mirror image (asserted below).  With the lower-landing rule it landed on m0 = m1 =
+#: (-1.3316, -1.3316), m2 (-1.3377, -1.3377) (U = 262.43 J); the path comparison accepted the
 #: tracker's landing as one of its alternatives, so only the check of the reference's
 #: own landing below tells the two rules apart.
 PERFECT_NECKS = [(2, 'head'), (3, 'head'), (2, 'rho'), (3, 'rho')]
@@ -798,7 +799,8 @@ def test_perfect_neck_against_the_reference(n, ramp):
         start, end = paper_neck(n, 0.6, 0.0), paper_neck(n, 0.6, -40.0)
     else:
         start, end = paper_neck(n, 0.9, -5.0), paper_neck(n, 0.2, -5.0)
-    got, ref = compare_neck(start, end, settle_stack(start, upright(n, start.modules[0].rho)).theta)
+    got, ref = compare_neck(start, end,
+                            settle_stack(start, upright(n, start.modules[0].rho)).theta)
     if (n, ramp) == (3, 'head'):
         assert len(ref.passages) == 1 and [j.kind for j in got.jumps] == ['fold']
     if (n, ramp) == (3, 'rho'):
@@ -1115,7 +1117,8 @@ def test_neck_jump_off_a_flat_crossing_takes_the_arm_its_departure_leans_to():
     assert got.status == 'ok', got.message
     (jump,) = got.jumps
     assert abs(jump.s - s_cross) <= LOCATION_TOL and jump.ambiguous, jump.s
-    assert all(abs(j.s - s_cross) <= LOCATION_TOL for j in ref.jumps), describe_reference(ref.jumps)
+    assert all(abs(j.s - s_cross) <= LOCATION_TOL for j in ref.jumps), \
+        describe_reference(ref.jumps)
     s_after = s_cross + 1e-9                         # the reference's bracket end
     rest = flow_to_rest(system, np.ravel(jump.from_theta), s_after)
     assert angle_distance(rest.state, np.ravel(jump.to_theta)) <= LANDING_TOL

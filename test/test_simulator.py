@@ -21,7 +21,8 @@ from tensegrity_ros.core.start_state import upright_guess
 
 def wrapped(a, b):
     """Largest angle difference modulo 2 pi."""
-    d = (np.asarray(a, dtype=float) - np.asarray(b, dtype=float) + math.pi) % (2 * math.pi) - math.pi
+    d = ((np.asarray(a, dtype=float) - np.asarray(b, dtype=float) + math.pi) % (2 * math.pi)
+         - math.pi)
     return float(np.max(np.abs(d)))
 
 

@@ -67,7 +67,8 @@ def test_seeded_small_commands_agree_with_node_coordinates(n):
 
 
 def neck(n, load, rho=0.6):
-    return Stack(tuple([ModuleParams.paper(rho)] * (n - 1) + [ModuleParams.paper(rho, F3=load, F4=load)]))
+    return Stack(tuple([ModuleParams.paper(rho)] * (n - 1)
+                       + [ModuleParams.paper(rho, F3=load, F4=load)]))
 
 
 JUMP_PATHS = [

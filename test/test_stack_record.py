@@ -61,7 +61,8 @@ def test_scales_carried_along_actuator_commands_equal_fresh_ones():
         np.testing.assert_array_equal(carried.state_weights, fresh.state_weights)
         start = end
     fresh = StackPath(Stack(start.modules), Stack(start.modules))  # from the changed design
-    assert StackPath(start, start).l_ref == fresh.l_ref != StackPath(Stack(tuple(NECK)), start).l_ref
+    assert (StackPath(start, start).l_ref == fresh.l_ref
+            != StackPath(Stack(tuple(NECK)), start).l_ref)
 
 
 def test_lazy_angles_and_forces_are_those_of_a_fresh_evaluation():

@@ -24,7 +24,8 @@ def scaled(p, length, stiffness):
 
 
 def wrapped(a, b):
-    return float(np.max(np.abs((np.asarray(a) - np.asarray(b) + math.pi) % (2 * math.pi) - math.pi)))
+    d = (np.asarray(a) - np.asarray(b) + math.pi) % (2 * math.pi) - math.pi
+    return float(np.max(np.abs(d)))
 
 
 AT_THE_LIMITS = {
@@ -32,8 +33,10 @@ AT_THE_LIMITS = {
     'L2/L1 min': ModuleParams(rho=0.75, L2=1 / LENGTH_RATIO, f3y=0.5),
     'rho/L1 min': ModuleParams(rho=1 / LENGTH_RATIO, f3y=0.5),
     'rho/L1 max': ModuleParams(rho=LENGTH_RATIO / 1.3, f3y=0.5),
-    'kb/ka max, kc/ka min': ModuleParams(rho=0.75, kb=100 * STIFFNESS_RATIO, kc=100 / STIFFNESS_RATIO),
-    'kb/ka min, kc/ka max': ModuleParams(rho=0.75, kb=100 / STIFFNESS_RATIO, kc=100 * STIFFNESS_RATIO),
+    'kb/ka max, kc/ka min': ModuleParams(rho=0.75, kb=100 * STIFFNESS_RATIO,
+                                         kc=100 / STIFFNESS_RATIO),
+    'kb/ka min, kc/ka max': ModuleParams(rho=0.75, kb=100 / STIFFNESS_RATIO,
+                                         kc=100 * STIFFNESS_RATIO),
     'load max': ModuleParams(rho=0.75, f3x=100 * LOAD_RATIO, f4y=-100 * LOAD_RATIO),
     'loads max, mixed': ModuleParams(rho=0.75, f3y=-100 * LOAD_RATIO, f4y=100 * LOAD_RATIO,
                                      f3x=-100 * LOAD_RATIO),
@@ -64,7 +67,8 @@ def test_jumps_are_scale_invariant(length, stiffness):
     unit_b = unit_a.with_(rho=0.1)
     theta = settle(unit_a, [-1.0, -1.0]).theta
     reference = track_module(unit_a, unit_b, theta)
-    result = track_module(scaled(unit_a, length, stiffness), scaled(unit_b, length, stiffness), theta)
+    result = track_module(scaled(unit_a, length, stiffness), scaled(unit_b, length, stiffness),
+                          theta)
     assert [j.kind for j in result.jumps] == [j.kind for j in reference.jumps] == ['fold']
     for a, b in zip(result.jumps, reference.jumps):
         assert a.s == pytest.approx(b.s, abs=1e-9)

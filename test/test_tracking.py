@@ -185,7 +185,8 @@ class Cusp:
         return np.concatenate([[2.0], np.zeros(self.size - 1)])
 
     def energy(self, y, s):
-        return y[0] ** 4 / 4 - y[0] ** 2 / 2 + (2 * s - 1) * y[0] + 0.5 * np.sum(self.c * y[1:] ** 2)
+        return (y[0] ** 4 / 4 - y[0] ** 2 / 2 + (2 * s - 1) * y[0]
+                + 0.5 * np.sum(self.c * y[1:] ** 2))
 
     def energy_s(self, y, s):
         return 2.0 * y[0]
@@ -263,7 +264,8 @@ def test_a_landing_that_finds_no_minimum_is_given_up(c):
 
 def test_tracker_refuses_an_unstable_start():
     with pytest.raises(TrackingError):
-        track(Cusp(2), np.array([0.0, 0.0]))          # y0 = 0 is a maximum at s = 0.5 ... and not an equilibrium at s = 0
+        # y0 = 0 is a maximum at s = 0.5 ... and not an equilibrium at s = 0
+        track(Cusp(2), np.array([0.0, 0.0]))
 
 
 # -- the tracker's definiteness and a tracked neck state's "stable" agree (issue 10) ------

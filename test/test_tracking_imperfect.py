@@ -21,7 +21,8 @@ P = ModuleParams.paper
 
 
 def wrapped(a, b):
-    return float(np.max(np.abs((np.asarray(a) - np.asarray(b) + math.pi) % (2 * math.pi) - math.pi)))
+    d = (np.asarray(a) - np.asarray(b) + math.pi) % (2 * math.pi) - math.pi
+    return float(np.max(np.abs(d)))
 
 
 # Each asymmetry turns the fig. 8a branch point C1 into a fold; the branch turns sharply
@@ -122,7 +123,8 @@ def test_every_jump_lands_on_another_stable_equilibrium(which, exponent, sign, t
     there = track_module(imperfect(0.5, change), imperfect(target, change), start.theta)
     runs = [there]
     if back:
-        runs.append(track_module(imperfect(target, change), imperfect(0.5, change), there.final.theta))
+        runs.append(track_module(imperfect(target, change), imperfect(0.5, change),
+                                 there.final.theta))
     for result in runs:
         assert result.status == 'ok', result.message
         for jump in result.jumps:
@@ -169,7 +171,8 @@ def test_tracker_and_operation_range_agree_on_the_branch_ends():
 @given(rho=st.tuples(st.floats(0.15, 1.6), st.floats(0.15, 1.6)),
        f3=st.tuples(st.floats(-10, 10), st.floats(-10, 10)),
        f4=st.tuples(st.floats(-10, 10), st.floats(-10, 10)),
-       fx=st.floats(-3, 3), L2=st.floats(0.6, 1.5), guess=st.tuples(st.floats(-3, 3), st.floats(-3, 3)))
+       fx=st.floats(-3, 3), L2=st.floats(0.6, 1.5),
+       guess=st.tuples(st.floats(-3, 3), st.floats(-3, 3)))
 def test_random_paths_jump_only_onto_other_stable_equilibria(rho, f3, f4, fx, L2, guess):
     """Random modules, loads (vertical and horizontal) and paths: the command ends on a
     stable equilibrium of the exact solver, and every jump lands on one a finite distance
@@ -187,6 +190,7 @@ def test_random_paths_jump_only_onto_other_stable_equilibria(rho, f3, f4, fx, L2
     for jump in result.jumps:
         assert wrapped(jump.to_theta, jump.from_theta) > 1e-3
         # just past the event (at it, a pitchfork's new minimum is still degenerate)
-        past = ModuleParams.from_vector(a.vector() + min(jump.s + 1e-3, 1.0) * (b.vector() - a.vector()))
+        past = ModuleParams.from_vector(a.vector()
+                                        + min(jump.s + 1e-3, 1.0) * (b.vector() - a.vector()))
         stable = [e.theta for e in equilibria(past).stable]
         assert min(wrapped(jump.to_theta, t) for t in stable) < 5e-2

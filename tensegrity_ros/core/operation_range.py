@@ -19,8 +19,7 @@ from .classification import DEGENERACY_TOL, hessian_eigenvalues
 from .module import ModuleParams
 from .polynomial_solver import equilibria
 
-# ---------------------------------------------------------------------------
-# Operation range: continuation of one stable branch in rho
+# -- Operation range: continuation of one stable branch in rho ---------------
 
 
 @dataclass(frozen=True)

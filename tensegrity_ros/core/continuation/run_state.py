@@ -108,7 +108,8 @@ class RunState:
 
     # -- verification -------------------------------------------------------
     def residual_ok(self, y, s, factor=1.0):
-        return inf_norm(self.problem.residual(y, s)) <= factor * self.settings.residual_tol * self.scale
+        return (inf_norm(self.problem.residual(y, s))
+                <= factor * self.settings.residual_tol * self.scale)
 
     def definite(self, eigenvalues):
         return positive_definite(eigenvalues, self.scale, self.settings)

@@ -191,7 +191,8 @@ def _settle(problem, y0, s, settings):
     for sign in (1.0, -1.0):
         start = y0 if y is None else y
         eig, modes = problem.stability(start, s)
-        candidate = slide(run, problem.project(start + sign * run.step_off_vector(modes[:, 0]), s), s)
+        candidate = slide(
+            run, problem.project(start + sign * run.step_off_vector(modes[:, 0]), s), s)
         if candidate is not None:
             candidates.append(candidate)
     if not candidates:

@@ -12,9 +12,9 @@ import time
 
 import numpy as np
 
-from tensegrity_ros.core.module import ModuleParams
-from tensegrity_ros.core.equilibria import equilibria
 from tensegrity_ros.core.analysis import degenerate_curves, operation_range, two_stable_limit
+from tensegrity_ros.core.equilibria import equilibria
+from tensegrity_ros.core.module import ModuleParams
 
 
 def timed(fn, repeat):
@@ -29,9 +29,12 @@ def timed(fn, repeat):
 
 def bench_curves():
     planes = [
-        ('fig. 4a  (rho, F)  F <= 0', ModuleParams.paper(1.0), 'rho', (0.001, 2.0), 'F', (-10.0, 0.0)),
-        ('fig. 4b  (rho, F)  F >= 0', ModuleParams.paper(1.0), 'rho', (0.001, 2.0), 'F', (0.0, 10.0)),
-        ('fig. 3   (rho, L2) F = 0', ModuleParams.paper(1.0), 'rho', (0.001, 4.0), 'L2', (0.001, 4.0)),
+        ('fig. 4a  (rho, F)  F <= 0', ModuleParams.paper(1.0),
+         'rho', (0.001, 2.0), 'F', (-10.0, 0.0)),
+        ('fig. 4b  (rho, F)  F >= 0', ModuleParams.paper(1.0),
+         'rho', (0.001, 2.0), 'F', (0.0, 10.0)),
+        ('fig. 3   (rho, L2) F = 0', ModuleParams.paper(1.0),
+         'rho', (0.001, 4.0), 'L2', (0.001, 4.0)),
         ('fig. 7   (rho, L2) F = -10', ModuleParams.paper(1.0, F3=-10, F4=-10),
          'rho', (0.005, 2.0), 'L2', (0.005, 2.0)),
         ('fig. 5b slice (rho, F4) F3=5', ModuleParams.paper(1.0, F3=5.0),

@@ -15,11 +15,11 @@ stopped (SIGALRM) and counted as over.
 import argparse
 import json
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 HERE = Path(__file__).resolve().parents[1]
 
@@ -141,12 +141,12 @@ def main():
     medians = {name: _summary(name, found) for name, found in answers.items()}
     if args.reference:
         verdicts = [a['reference'].split(':')[0] for a in answers['this tree'] if 'reference' in a]
-        print(f'against the reference: {dict((v, verdicts.count(v)) for v in set(verdicts))}')
+        print(f'against the reference: { {v: verdicts.count(v) for v in set(verdicts)} }')
     if args.baseline:
         print(f'median ratio baseline / this tree: '
               f'{medians["baseline"] / medians["this tree"]:.2f}')
         differ = [(i, a, b) for i, (a, b) in enumerate(zip(answers['this tree'],
-                                                            answers['baseline']))
+                                                           answers['baseline']))
                   if (a.get('status'), a.get('jumps')) != (b.get('status'), b.get('jumps'))]
         for i, a, b in differ:
             print(f'    path {i} ({a["family"]}, N = {a["n"]}): {a.get("status")} '

@@ -30,10 +30,10 @@ a figure the load does not change, by area (ROS layer, simulator, stack tracker)
 import argparse
 import math
 import os
+from pathlib import Path
 import statistics
 import sys
 import time
-from pathlib import Path
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -171,7 +171,7 @@ def main(argv=None):
           f'{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}; tensegrity_ros from '
           f'{Path(tensegrity_ros.__file__).parent})')
     clock = 'CPU time of this thread' if CLOCK is time.thread_time else 'wall clock'
-    print(f"per command (us, {clock})")
+    print(f'per command (us, {clock})')
     print(f'{"":<36} {"median":>8} {"p90":>8}')
     for key, label in (('node', 'node: joint_commands callback'),
                        ('simulator', 'simulator.command_rhos (inside it)'),

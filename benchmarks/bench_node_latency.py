@@ -39,12 +39,12 @@ import argparse
 import json
 import math
 import os
+from pathlib import Path
 import statistics
 import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / 'config' / 'default.yaml'
@@ -61,8 +61,6 @@ def _ros_env():
     env['PYTHONUNBUFFERED'] = '1'
     env.pop('ROS_PYTHON_CHECK_FIELDS', None)
     return env
-
-
 
 
 def _spin_relay(make_node, executor_kind):
@@ -90,6 +88,7 @@ def _spin_relay(make_node, executor_kind):
         rclpy.try_shutdown()
     return 0
 
+
 def _stop(procs):
     """Ctrl-C every process still running, then wait for it (killed after 10 s)."""
     for p in procs:
@@ -100,6 +99,7 @@ def _stop(procs):
             p.wait(timeout=10)
         except subprocess.TimeoutExpired:
             p.kill()
+
 
 def _cpu_seconds(pid):
     """User + system CPU time of a process (Linux /proc), or nan."""
@@ -491,9 +491,7 @@ def main(argv=None):
     return 1 if (args.strict and not ok) else 0
 
 
-
 # -- the neck case (issue 14): config/neck.yaml driven by joint_commands -----------------
-
 NECK_CONFIG = ROOT / 'config' / 'neck.yaml'
 NECK_MODULES = ('m0', 'm1', 'm2')
 NECK_RHO = (0.09, 0.085, 0.08)         # rho_initial of config/neck.yaml (m)
@@ -578,8 +576,9 @@ def neck_main(argv=None):
     target), and ``untraced`` = sent -
     processed - coalesced - rejected were lost without a trace (0 unless the transport
     dropped them); ``late`` answers came more than LATE_US after their command: the relay
-    never coalesces, so when it falls behind it shows here (and in p99), not as unanswered.  Target: every command answered (nothing coalesced or lost: the node
-    keeps up at 1 kHz) and node p50 within 2x the relay's, in every run."""
+    never coalesces, so when it falls behind it shows here (and in p99), not as unanswered.
+    Target: every command answered (nothing coalesced or lost: the node keeps up at 1 kHz) and node
+    p50 within 2x the relay's, in every run."""
     parser = argparse.ArgumentParser(description=neck_main.__doc__.split('\n')[0])
     parser.add_argument('--neck', action='store_true', help='run the neck case (this one)')
     parser.add_argument('--neck-relay', action='store_true', help=argparse.SUPPRESS)
@@ -646,7 +645,7 @@ def _print_neck(runs, args):
           f'{args.node_executor}')
     print('every command sent is one of: answered (a joint_states reported it; late = more '
           f'than {LATE_US / 1000:g} ms after it was sent, a backlog) or unanswered; the '
-          'node\'s unanswered split by its /diagnostics: coalesced = acted on through a later '
+          "node's unanswered split by its /diagnostics: coalesced = acted on through a later "
           'command (node behind), rejected, untraced = lost without a trace, unseen = '
           'processed but no joint_states of it arrived')
     print(f'{"run":>3} {"process":<17} {"sent":>6} {"answered":>8} {"late":>6} '

@@ -25,18 +25,18 @@ reference takes seconds to a minute a command); disagreements are listed.
 import argparse
 import collections
 import os
+from pathlib import Path
 import random
 import re
 import signal
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
 from tensegrity_ros.core.events import TrackingFailure
-from tensegrity_ros.core.stack import Stack, track_stack
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+from tensegrity_ros.core.stack import Stack, track_stack
 from tensegrity_ros.params_file import load_stack_config
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
@@ -90,7 +90,7 @@ def apply(sim, command):
         return sim.command_rho(command[1], command[2], 0)
     if command[0] == 'joint_commands':
         return sim.command_rhos(command[1], 0)
-    return sim.set_parameters({2: dict(f3y=command[1], f4y=command[1])}, 0, 'force')
+    return sim.set_parameters({2: {'f3y': command[1], 'f4y': command[1]}}, 0, 'force')
 
 
 def compared_with_reference(start, end, held, limit):
@@ -103,7 +103,7 @@ def compared_with_reference(start, end, held, limit):
     reference's own flow from our departure rests (at a crossing the way out turns on
     the departure's last 1e-7 rad), is followed on by the reference from there."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
-    from reference_paths import NeckSystem, angle_distance, flow_to_rest, quasi_static_path
+    from reference_paths import angle_distance, flow_to_rest, NeckSystem, quasi_static_path
     track = track_stack(start, end, held)
     if track.status != 'ok':
         return 'agree'                          # a stated give-up: counted as a failure

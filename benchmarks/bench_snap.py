@@ -49,7 +49,7 @@ def _problem(name):
     if name == 'module':
         p = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)
         return [p], [[-1.0, -1.0]], [ModuleLimits(0.05, 1.95, 0.1)], [0.05], (0, 0.9), 800
-    base = dict(L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02)
+    base = {'L1': 0.12, 'L2': 0.12, 'ka': 300.0, 'kb': 300.0, 'kc': 300.0, 'm1': 0.02, 'm2': 0.02}
     if name == 'neck3':
         modules = [ModuleParams(rho=0.09, **base), ModuleParams(rho=0.085, **base),
                    ModuleParams(rho=0.08, f3y=-0.5, f4y=-0.5, **base)]

@@ -27,8 +27,8 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'test'))
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
-from oracle_solver import oracle_equilibria, torus_distance    # noqa: E402
-from tensegrity_ros.core import ModuleParams, equilibria, equilibria_batch   # noqa: E402
+from oracle_solver import oracle_equilibria, torus_distance  # noqa: E402
+from tensegrity_ros.core import equilibria, equilibria_batch, ModuleParams  # noqa: E402
 
 NAMES = ('rho', 'L1', 'L2', 'ka', 'kb', 'kc', 'f3x', 'f3y', 'f4x', 'f4y', 'm1', 'm2')
 
@@ -40,11 +40,11 @@ def varied_points(n, seed=0):
     for i in range(n):
         kind = i % 7
         k = rng.uniform(20, 300, 3)
-        d = dict(rho=rng.uniform(0.02, 2.5), L1=rng.uniform(0.3, 2.5), L2=rng.uniform(0.3, 2.5),
-                 ka=k[0], kb=k[1], kc=k[2])
+        d = {'rho': rng.uniform(0.02, 2.5), 'L1': rng.uniform(0.3, 2.5),
+             'L2': rng.uniform(0.3, 2.5), 'ka': k[0], 'kb': k[1], 'kc': k[2]}
         if kind == 0:                                           # the paper's setting
-            d = dict(rho=rng.uniform(0.01, 2), L2=rng.uniform(0.2, 2), f3y=rng.uniform(-10, 10),
-                     f4y=rng.uniform(-10, 10))
+            d = {'rho': rng.uniform(0.01, 2), 'L2': rng.uniform(0.2, 2),
+                 'f3y': rng.uniform(-10, 10), 'f4y': rng.uniform(-10, 10)}
         elif kind == 1:                                         # general loads
             d.update(zip(('f3x', 'f3y', 'f4x', 'f4y'), rng.normal(0, 20, 4)))
         elif kind == 2:                                         # symmetric design and load
@@ -113,17 +113,18 @@ def single(points, grid):
           f' solver itself')
     other = {k: v for k, v in verdicts.items() if k != 'same'}
     if other:
-        print(f'    differences: {other}  (at {grid}x{grid} starts the multi-start solver can miss '
-              f'equilibria with small basins; test/test_oracle.py uses 24x24)')
+        print(f'    differences: {other}  (at {grid}x{grid} starts the multi-start solver can '
+              f'miss equilibria with small basins; test/test_oracle.py uses 24x24)')
     return med_e, med_m, verdicts.get('same', 0), compared
 
 
 def batch_random(n, seed=1):
     rng = np.random.default_rng(seed)
-    args = dict(rho=rng.uniform(0.01, 3, n), L1=rng.uniform(0.2, 3, n), L2=rng.uniform(0.2, 3, n),
-                ka=rng.uniform(10, 500, n), kb=rng.uniform(10, 500, n), kc=rng.uniform(10, 500, n),
-                f3x=rng.normal(0, 20, n), f3y=rng.normal(0, 20, n), f4x=rng.normal(0, 20, n),
-                f4y=rng.normal(0, 20, n), m1=rng.uniform(0, 2, n), m2=rng.uniform(0, 2, n))
+    args = {'rho': rng.uniform(0.01, 3, n), 'L1': rng.uniform(0.2, 3, n),
+            'L2': rng.uniform(0.2, 3, n), 'ka': rng.uniform(10, 500, n),
+            'kb': rng.uniform(10, 500, n), 'kc': rng.uniform(10, 500, n),
+            'f3x': rng.normal(0, 20, n), 'f3y': rng.normal(0, 20, n), 'f4x': rng.normal(0, 20, n),
+            'f4y': rng.normal(0, 20, n), 'm1': rng.uniform(0, 2, n), 'm2': rng.uniform(0, 2, n)}
     return args
 
 
@@ -132,8 +133,10 @@ def spot_check(args, b, count, seed=2):
     idx = rng.choice(b.valid.shape[0], size=count, replace=False)
     agree = 0
     for i in idx:
-        p = ModuleParams(**{k: float(np.broadcast_to(args.get(k, ModuleParams.__dataclass_fields__[k].default),
-                                                     b.valid.shape[:1])[i]) for k in NAMES})
+        p = ModuleParams(**{
+            k: float(np.broadcast_to(args.get(k, ModuleParams.__dataclass_fields__[k].default),
+                                     b.valid.shape[:1])[i])
+            for k in NAMES})
         s = equilibria(p)
         agree += (b.num_equilibria[i], b.num_stable[i]) == (len(s), s.num_stable)
     return agree, count
@@ -176,9 +179,11 @@ def batch(quick):
     args = batch_random(n)
     b, rate_random = throughput('random points', args, n)
     agree, count = spot_check(args, b, 300)
-    print(f'        spot check vs single solver: {agree} / {count} agree (counts and stable counts)')
-    rho, F = np.meshgrid(np.linspace(0.005, 2.0, 1000), np.linspace(-10, 10, 400 if not quick else 100))
-    grid = dict(rho=rho.ravel(), f3y=F.ravel(), f4y=F.ravel())
+    print(f'        spot check vs single solver: {agree} / {count} agree '
+          f'(counts and stable counts)')
+    rho, F = np.meshgrid(np.linspace(0.005, 2.0, 1000),
+                         np.linspace(-10, 10, 400 if not quick else 100))
+    grid = {'rho': rho.ravel(), 'f3y': F.ravel(), 'f4y': F.ravel()}
     label = f'(rho, F) grid {rho.shape[1]}x{rho.shape[0]} (fig. 4)'
     throughput(label, grid, rho.size, repeat=1)
     b, rate_grid = throughput(label, grid, rho.size, repeat=1, chunk=50_000)
@@ -202,7 +207,8 @@ def main():
     rate_random, rate_grid = batch(a.quick)
     print(f'summary: single solve median {med_e:.0f} us ({med_m / med_e:.0f}x faster than '
           f'multi-start scipy, same sets on {same}/{compared}); batch {rate_random:.0f} points/s '
-          f'(random), {rate_grid:.0f} points/s (grid, calls of 50k); total {time.perf_counter() - t0:.0f} s')
+          f'(random), {rate_grid:.0f} points/s (grid, calls of 50k); '
+          f'total {time.perf_counter() - t0:.0f} s')
     assert same >= 0.98 * compared, 'the exact and multi-start solvers disagree too often'
 
 

@@ -22,28 +22,29 @@ Each command is timed ``REPEAT`` times (env BENCH_REPEAT, default 3) and the bes
 kept (the machine is shared; the best of a few is the cost of the code, not of the
 neighbours); medians and p90 are over the commands.  BENCH_CLOCK=cpu times with this
 thread's CPU clock instead of the wall clock (on a loaded machine the wall clock also
-counts the time spent waiting for a CPU; both columns of a run use the same clock).  Targets (issue 14): N = 3 at
-most 0.15 ms and faster than naive; N = 10 at most 0.5 ms; N = 1 within 1.5x of the
-module tracker.
+counts the time spent waiting for a CPU; both columns of a run use the same clock).  Targets
+(issue 14): N = 3 at most 0.15 ms and faster than naive; N = 10 at most 0.5 ms; N = 1 within
+1.5x of the module tracker.
 
     python benchmarks/bench_stack.py
 """
 import math
 import os
+from pathlib import Path
 import statistics
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import root
 
-from tensegrity_ros.core import ModuleParams, continuation, track_module
-from tensegrity_ros.core.stack import Stack, StackPath, _end_record, settle_stack, track_stack
+from tensegrity_ros.core import continuation, ModuleParams, track_module
+from tensegrity_ros.core.stack import _end_record, settle_stack, Stack, StackPath, track_stack
 from tensegrity_ros.core.stack_fast_step import _dgesv, _dgetrf, _start_point
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
-from stack_cartesian_reference import CartesianStackPath  # noqa: E402  (the "before")
+# the "before"; I100: it cannot sort with the imports above, it needs test/ on sys.path first
+from stack_cartesian_reference import CartesianStackPath  # noqa: E402, I100
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
@@ -138,7 +139,9 @@ def floor(n=3):
     path = StackPath(stack, moved)
     y, y1 = state.state, track_stack(stack, moved, state).final.state
     start, _ = _start_point(path, y, state)
-    fresh = lambda: path.evaluate(y1, 1.0)
+
+    def fresh():
+        return path.evaluate(y1, 1.0)
     point = tight(fresh)
 
     def unrated():                  # the start as a command finds it: its s-rates not made
@@ -161,7 +164,8 @@ def floor(n=3):
     root_time = tight(lambda: naive(stack, moved, y))
     print(f'floor N = {n} (parts timed alone, us): ' + ', '.join(
         f'{k} {v:.1f}' for k, v in parts.items()))
-    print(f'  sum {total:.1f} us; whole verified step {step:.1f} us; naive root {root_time:.1f} us; '
+    print(f'  sum {total:.1f} us; whole verified step {step:.1f} us; '
+          f'naive root {root_time:.1f} us; '
           f'floor/naive {total / root_time:.2f}, step/naive {step / root_time:.2f}')
 
 
@@ -169,7 +173,7 @@ def main():
     rng = np.random.default_rng(0)
     load = os.getloadavg()[0]
     clock = 'thread CPU time' if CLOCK is time.thread_time else 'wall clock'
-    print(f'small command: one module\'s rho +-{STEP:g} m, {COMMANDS} successive commands per N, '
+    print(f"small command: one module's rho +-{STEP:g} m, {COMMANDS} successive commands per N, "
           f'best of {REPEAT} each ({clock}); median (p90) in ms; {os.cpu_count()} CPUs, '
           f'load {load:.1f}')
     print(f'{"N":>3}  {"tracker":>13}  {"naive":>13}  {"before":>13}  {"naive/trk":>9}  '
@@ -180,7 +184,9 @@ def main():
         med = {k: statistics.median(v) for k, v in times.items() if v}
         p90 = {k: float(np.percentile(v, 90)) for k, v in times.items() if v}
         medians[n] = med
-        cell = lambda k: f'{med[k]:6.3f} ({p90[k]:5.2f})'
+
+        def cell(k):
+            return f'{med[k]:6.3f} ({p90[k]:5.2f})'
         print(f'{n:>3}  {cell("tracker")}  {cell("naive")}  {cell("before")}  '
               f'{med["naive"] / med["tracker"]:>9.2f}  {med["before"] / med["tracker"]:>10.1f}  '
               f'{statistics.median(steps):>5.0f}  {disagree}/{COMMANDS}')

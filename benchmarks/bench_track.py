@@ -13,7 +13,7 @@ import time
 import numpy as np
 from scipy.optimize import root
 
-from tensegrity_ros.core import ModuleParams, gradient, hessian, settle, track_module
+from tensegrity_ros.core import gradient, hessian, ModuleParams, settle, track_module
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 

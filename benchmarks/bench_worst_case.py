@@ -6,8 +6,8 @@ the largest supported load (load/(k L) = 1e4), head-load ramps on necks of 3 and
 paper modules (one with m0 ka = 100.0000001, which buckles near-continuously),
 parameter changes next to the branch point C1, and resets of loaded necks (a settle).
 Each command is followed by ``advance`` calls (10 ms of simulated time apart) while
-motion is pending, as the node's timer would make them.  Every call is timed; the table shows per case the
-worst single call and the sum, for
+motion is pending, as the node's timer would make them.  Every call is timed; the table shows per
+case the worst single call and the sum, for
 
 * unbounded: ``time_budget=None``, every command tracked to its end in one call
   (what the simulator did before issue 10's bounded work);
@@ -26,8 +26,7 @@ import time
 
 import numpy as np
 
-from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core import simulator as simulator_module
+from tensegrity_ros.core import ModuleParams, simulator as simulator_module
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 
 TICK_NS = 10_000_000            # simulated time between calls (a 100 Hz timer)

@@ -39,9 +39,9 @@ import sys
 import numpy as np
 
 from . import snap_command, tolerance_command
-from .core import InvalidParameterError, ModuleParams, equilibria, track_module
+from .core import equilibria, InvalidParameterError, ModuleParams, track_module
 from .core.start_state import start_state, upright_guess
-from .problem import (APPLY_ORDER, DEFAULT_FIELDS, PARAMETERS, describe, describe_modules,
+from .problem import (APPLY_ORDER, DEFAULT_FIELDS, describe, describe_modules, PARAMETERS,
                       resolve_fields)
 
 #: Names whose value must be > 0, resp. >= 0.
@@ -257,14 +257,13 @@ def build_parser():
     p = sub.add_parser(
         'limit', allow_abbrev=False,          # --F3 must not silently mean --F3x
         help='point C: the largest forces with two stable equilibria',
-        description='Point C of the paper\'s fig. 6: the tip of the 2-stable region of '
+        description="Point C of the paper's fig. 6: the tip of the 2-stable region of "
                     '(rho, F3, F4) space, an equilibrium with H = 0. No point with F3 and F4 '
                     'both beyond C has two stable equilibria. --pushing: the mirror image '
                     '(negative forces).')
     group = p.add_argument_group('design parameters')
     for name in ('L1', 'L2', 'k', 'ka', 'kb', 'kc', 'F3x', 'F4x'):
-        group.add_argument(f'--{name}', type=finite_float, metavar='X',
-                           help=PARAMETERS[name][1])
+        group.add_argument(f'--{name}', type=finite_float, metavar='X', help=PARAMETERS[name][1])
     p.add_argument('--pushing', action='store_true',
                    help='pushing forces (F3, F4 < 0) instead of pulling')
     p.add_argument('--json', action='store_true', help='machine-readable output')
@@ -601,7 +600,7 @@ def _head_text(e):
 
 def exact_stack_equilibria(stack):
     """(records sorted by energy, status) of a one-module stack from the exact solver."""
-    from .core.stack import StackPath, stack_equilibrium_at
+    from .core.stack import stack_equilibrium_at, StackPath
     result = equilibria(stack.modules[0])
     path = StackPath(stack, stack)
     records = [stack_equilibrium_at(stack, path.state_from_angles([[e.theta1, e.theta2]], 0.0))
@@ -611,6 +610,7 @@ def exact_stack_equilibria(stack):
 
 def cmd_stack_solve(args, out):
     import time
+
     from .core.stack import stack_equilibria
     spec = _stack_spec(args)
     if args.rho is not None and args.rhos is not None:
@@ -999,9 +999,9 @@ def cmd_limit(args, out):
         if v is not None:
             check_domain(name, v)
             values[name] = v
-    design = dict(L1=values.get('L1', 1.0), L2=values.get('L2', 1.0), k=values.get('k', 100.0),
-                  ka=values.get('ka'), kb=values.get('kb'), kc=values.get('kc'),
-                  f3x=values.get('F3x', 0.0), f4x=values.get('F4x', 0.0))
+    design = {'L1': values.get('L1', 1.0), 'L2': values.get('L2', 1.0),
+              'k': values.get('k', 100.0), 'ka': values.get('ka'), 'kb': values.get('kb'),
+              'kc': values.get('kc'), 'f3x': values.get('F3x', 0.0), 'f4x': values.get('F4x', 0.0)}
     c = two_stable_limit(design.pop('L2'), pushing=args.pushing, **design)
     side = 'pushing' if args.pushing else 'pulling'
     if args.json:

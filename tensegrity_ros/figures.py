@@ -19,14 +19,14 @@ changes stability.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 import math
 import os
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from .core import ModuleParams, equilibria, equilibria_batch, track_module
+from .core import equilibria, equilibria_batch, ModuleParams, track_module
 from .core.start_state import start_state
 from .problem import describe, resolve_fields
 
@@ -183,8 +183,8 @@ BOUNDARY_AXES = {'rho': 'rho', 'L1': 'L1', 'L2': 'L2', 'k': 'k', 'ka': 'ka', 'kb
 #: Continuation step along the curves (arclength in the box scaled to the unit square):
 #: at least 200 points per box side, smooth at figure resolution (~0.2-0.7 s per map).
 BOUNDARY_STEP = 0.005
-BOUNDARY_STYLE = dict(color='k', linestyle='-', linewidth=1.6)
-OTHER_CURVE_STYLE = dict(color='#7a7a7a', linestyle=(0, (4, 3)), linewidth=0.8)
+BOUNDARY_STYLE = {'color': 'k', 'linestyle': '-', 'linewidth': 1.6}
+OTHER_CURVE_STYLE = {'color': '#7a7a7a', 'linestyle': (0, (4, 3)), 'linewidth': 0.8}
 
 
 @dataclass
@@ -301,7 +301,7 @@ def plot_map(result, path, title=None, curves=None):
     ``curves``: :class:`~.core.analysis.Curve` list (e.g. ``compute_boundaries(...).curves``)
     drawn over the map with :func:`draw_boundaries`.
     """
-    from matplotlib.colors import ListedColormap, BoundaryNorm
+    from matplotlib.colors import BoundaryNorm, ListedColormap
     from matplotlib.patches import Patch
     fig = _new_figure((6.4, 5.2))
     ax = fig.add_subplot()
@@ -665,8 +665,8 @@ def _draw_periodic(ax, x, y, **kw):
     return line
 
 
-STABLE_STYLE = dict(color='#1f4fbf', linestyle='-', linewidth=2.0)
-UNSTABLE_STYLE = dict(color='#d62728', linestyle='--', linewidth=1.2)
+STABLE_STYLE = {'color': '#1f4fbf', 'linestyle': '-', 'linewidth': 2.0}
+UNSTABLE_STYLE = {'color': '#d62728', 'linestyle': '--', 'linewidth': 1.2}
 
 
 def _styled_runs(branch):
@@ -744,10 +744,10 @@ def _draw_track(ax, tracked, c):
             k = len(rs) // 2
             y0, y1 = _wrap(ang[k - 1]), _wrap(ang[k - 1]) + (ang[k] - ang[k - 1])
             ax.annotate('', xy=(rs[k], y1), xytext=(rs[k - 1], y0), zorder=4,
-                        arrowprops=dict(arrowstyle='-|>', color='#1a7a1a', lw=1.5,
-                                        mutation_scale=16))
+                        arrowprops={'arrowstyle': '-|>', 'color': '#1a7a1a', 'lw': 1.5,
+                                    'mutation_scale': 16})
     for rho, t_from, t_to, kind in tracked.jumps:
         y0, y1 = _wrap(t_from[c]), _wrap(t_to[c])
         ax.annotate('', xy=(rho, y1), xytext=(rho, y0), zorder=6,
-                    arrowprops=dict(arrowstyle='-|>', color='k', lw=1.6, mutation_scale=14,
-                                    shrinkA=0, shrinkB=0))
+                    arrowprops={'arrowstyle': '-|>', 'color': 'k', 'lw': 1.6, 'mutation_scale': 14,
+                                'shrinkA': 0, 'shrinkB': 0})

@@ -52,9 +52,8 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
-from tensegrity_ros import node_parameters as params
-from tensegrity_ros import node_process as process
-from tensegrity_ros import ros_conversions as conv
+from tensegrity_ros import (node_parameters as params, node_process as process,
+                            ros_conversions as conv)
 from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog, force_key,
                                                     target_key)
 from tensegrity_ros.core.events import Deferred, FAILED, Jump, JumpAhead, Passage, TrackingFailure

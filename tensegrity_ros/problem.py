@@ -29,8 +29,8 @@ PARAMETERS = {
 #: Group names are applied first so that specific names override them.
 APPLY_ORDER = ('rho', 'L1', 'L2', 'k', 'F', 'ka', 'kb', 'kc', 'F3', 'F4', 'F3x', 'F4x', 'm1', 'm2')
 #: Default values of the fields (the paper's normalisation L1 = 1, k = 100).
-DEFAULT_FIELDS = dict(L1=1.0, L2=1.0, ka=100.0, kb=100.0, kc=100.0,
-                      f3x=0.0, f3y=0.0, f4x=0.0, f4y=0.0, m1=0.0, m2=0.0)
+DEFAULT_FIELDS = {'L1': 1.0, 'L2': 1.0, 'ka': 100.0, 'kb': 100.0, 'kc': 100.0,
+                  'f3x': 0.0, 'f3y': 0.0, 'f4x': 0.0, 'f4y': 0.0, 'm1': 0.0, 'm2': 0.0}
 
 
 def resolve_fields(values):

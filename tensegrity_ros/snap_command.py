@@ -20,7 +20,7 @@ from .core.dynamics import MAX_HOLD, simulate_snap
 HELP = 'simulate the motion of a snap-through (rods with mass, pivot damping)'
 DESCRIPTION = (
     'Start at rest in the stable equilibrium of --theta1/--theta2 (as track), drive rho to '
-    '--to-rho at --rate, then hold; integrate I theta\'\' = -dU/dtheta - c theta\' '
+    "--to-rho at --rate, then hold; integrate I theta'' = -dU/dtheta - c theta' "
     '(I = m L^2 / 3, --m1/--m2 required). Reports the onset of the snap, peak speed, peak '
     'actuator force, overshoot, settling time and the rest state, beside the quasi-static '
     'prediction of track.')
@@ -47,7 +47,7 @@ def add_snap_parser(subparsers, add_module_options, number):
     p.add_argument('--json', action='store_true', help='the summary as JSON')
     p.add_argument('--csv', metavar='FILE', help='write the time history as CSV')
     p.add_argument('--plot', metavar='FILE.png',
-                   help='write theta, theta\' and the actuator force against time as PNG')
+                   help="write theta, theta' and the actuator force against time as PNG")
     return p
 
 
@@ -89,7 +89,7 @@ def summary_text(s):
     if not s['quasi_static']['jumps']:
         lines.append('quasi-static: no jump')
     if s['onset_rho'] is None:
-        lines.append(f"dynamic: no snap (|theta'| stays below 1 rad/s)")
+        lines.append("dynamic: no snap (|theta'| stays below 1 rad/s)")
     else:
         lines.append(f"dynamic: snap starts at rho={s['onset_rho']:.6g} m "
                      f"(t={s['onset_time']:.6g} s)")

@@ -32,8 +32,8 @@ import os
 import numpy as np
 
 from .core.module import InvalidParameterError, PARAMETER_NAMES, STANDARD_GRAVITY
-from .core.tolerance_questions import (code_fingerprint, evaluate_chunk, HeadLoad,
-                                       KIND_NAMES, OperatingRange, PlannedPath, STATUS_NAMES)
+from .core.tolerance_questions import (code_fingerprint, evaluate_chunk, HeadLoad, KIND_NAMES,
+                                       OperatingRange, PlannedPath, STATUS_NAMES)
 from .core.tolerance_sampling import (parse_spread, sample_waypoints, SAMPLERS, Tolerance,
                                       unit_samples)
 from .core.tolerance_statistics import (describe_figure, event_probability, noise_level,

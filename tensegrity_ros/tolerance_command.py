@@ -17,8 +17,8 @@ import sys
 
 from .core.tolerance_sampling import SAMPLERS
 from .core.tolerance_statistics import INTERVALS
-from .tolerance import (module_design, neck_design, QUESTIONS, tolerance_study,
-                        ToleranceError, write_text_file)
+from .tolerance import (module_design, neck_design, QUESTIONS, tolerance_study, ToleranceError,
+                        write_text_file)
 
 _HELP = {
     'range': 'one module: the stable rho interval through the working point (as `tensegrity '

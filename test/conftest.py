@@ -11,6 +11,7 @@ share a domain; domains stay in 0..101, the range ROS 2 documents as safe on Lin
 import os
 
 import pytest
+
 #: ROS 2's safe domain range on Linux is 0..101 (ports of higher ones may collide).
 MAX_DOMAIN = 101
 

@@ -4,8 +4,8 @@ pip puts them next to the interpreter (``.venv/bin``); colcon, like every ament_
 install, puts them in ``<prefix>/lib/tensegrity_ros/`` (setup.cfg), the prefix found
 through the ament index (``AMENT_PREFIX_PATH``), which is how ``ros2 run`` finds them.
 """
-import sys
 from pathlib import Path
+import sys
 
 PACKAGE = 'tensegrity_ros'
 
@@ -13,7 +13,7 @@ PACKAGE = 'tensegrity_ros'
 def ament_prefix():
     """Install prefix of the package in the ament index, or None outside a ROS environment."""
     try:
-        from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+        from ament_index_python.packages import get_package_prefix, PackageNotFoundError
     except ImportError:
         return None
     try:

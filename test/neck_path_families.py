@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tensegrity_ros.core import ModuleParams, equilibria
+from tensegrity_ros.core import equilibria, ModuleParams
 from tensegrity_ros.core.stack import Stack
 
 FAMILIES = ('rho', 'all', 'head', 'limit', 'perfect', 'imperfect')

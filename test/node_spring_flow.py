@@ -21,13 +21,12 @@ positive definite.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from scipy.integrate import LSODA
 from scipy.linalg import null_space
-
 
 #: Evaluations of the flow's velocity one flow may use before it gives up (FlowUndecided):
 #: a bounded time on any machine (~4 s).  The flows of test_perfect_chord_ramp_landing.py
@@ -77,8 +76,8 @@ class NodeSpringNeck:
 
     def nodes_from_angles(self, theta):
         """Moving node coordinates (..., 4N) from local angles (..., N, 2) or (..., 2N),
-        docs/model.md sections 1 and 4: module i's frame has its origin at A1(i) and its x axis along
-        A1 -> A2.  Complex angles are fine (complex steps)."""
+        docs/model.md sections 1 and 4: module i's frame has its origin at A1(i) and its x axis
+        along A1 -> A2.  Complex angles are fine (complex steps)."""
         theta = np.asarray(theta)
         if theta.shape[-2:] != (self.n, 2):               # flat states (..., 2N)
             theta = theta.reshape(theta.shape[:-1] + (self.n, 2))
@@ -155,7 +154,8 @@ class NodeSpringNeck:
             d = p[a] - p[b]
             r = np.linalg.norm(d)
             u = d / r
-            add(a, b, self.stiffness * ((1.0 - length / r) * np.eye(2) + length / r * np.outer(u, u)))
+            add(a, b, self.stiffness * ((1.0 - length / r) * np.eye(2)
+                                        + length / r * np.outer(u, u)))
         return h.reshape(2 * m, 2 * m)[4:, 4:]
 
     # -- the overdamped flow: node drag or pivot damping ----------------------------------
@@ -165,7 +165,8 @@ class NodeSpringNeck:
     # every pivot's local angle rate (docs/model.md section 5, core/neck_dynamics.py).
     def coordinates(self, theta, damping):
         """The flow's state for local angles theta: node coordinates or the angles."""
-        return self.nodes_from_angles(theta) if damping == 'node' else np.ravel(theta).astype(float)
+        return (self.nodes_from_angles(theta) if damping == 'node'
+                else np.ravel(theta).astype(float))
 
     def to_nodes(self, y, damping):
         return y if damping == 'node' else self.nodes_from_angles(y)
@@ -271,7 +272,8 @@ class NodeSpringNeck:
         r = len(self.rigid)
         for _ in range(iterations):
             jac = self.rigid_jacobian(x)
-            residual = np.concatenate([self.gradient(x, stiff=False) + jac.T @ mu, self.rigid_residuals(x)])
+            residual = np.concatenate([self.gradient(x, stiff=False) + jac.T @ mu,
+                                       self.rigid_residuals(x)])
             if np.max(np.abs(residual)) < tol:
                 break
             kkt = np.block([[self.lagrangian_hessian(x, mu), jac.T], [jac, np.zeros((r, r))]])

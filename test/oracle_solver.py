@@ -11,8 +11,8 @@ check the exact solver, which is what the tests and the benchmark use it for.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from scipy.optimize import root

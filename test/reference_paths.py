@@ -34,9 +34,9 @@ gradients (exact to rounding) and central differences of them for the Hessians.
 """
 from __future__ import annotations
 
-import math
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -520,7 +520,7 @@ class NeckSystem:
             return None
         low = np.linalg.eigvalsh(self.reduced(star, s)[0])[0]
         return star if rest_certified(self, theta, s, star, low, 4.0 * self.n * self.rate(s),
-                                    close) else None
+                                      close) else None
 
     def on_saddle(self, theta, s):
         return stalled_on_saddle(self, theta, s)
@@ -620,7 +620,8 @@ class NeckSystem:
             return crossing, states
         states = []
         for sign in (1.0, -1.0):
-            direction = math.sqrt(values[1]) * vectors[:, 0] + sign * math.sqrt(-values[0]) * vectors[:, 1]
+            direction = (math.sqrt(values[1]) * vectors[:, 0]
+                         + sign * math.sqrt(-values[0]) * vectors[:, 1])
             direction /= np.linalg.norm(direction)
             for way in (1.0, -1.0):
                 a = sol.x + way * push * direction
@@ -717,7 +718,9 @@ def stalled_on_saddle(system, y, s):
     if values[0] >= 0:
         return None
     offset = abs(float(modes[:, 0] @ (y - star)))
-    return (star, modes[:, 0]) if offset <= 1e-9 * float(np.linalg.norm(y - star)) + 1e-14 else None
+    if offset <= 1e-9 * float(np.linalg.norm(y - star)) + 1e-14:
+        return star, modes[:, 0]
+    return None
 
 
 class NoRest(RuntimeError):

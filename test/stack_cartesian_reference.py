@@ -11,10 +11,14 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tensegrity_ros.core.module import PARAMETER_NAMES, InvalidParameterError
+from tensegrity_ros.core.module import InvalidParameterError, PARAMETER_NAMES
+
+if TYPE_CHECKING:       # the annotations' Stack only: the reference uses none of its code
+    from tensegrity_ros.core.stack import Stack
 
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
 _FIXED = 2
@@ -39,10 +43,18 @@ class _Topology:
 
     def __init__(self, n):
         self.n = n
-        a3 = lambda i: 2 + 2 * i
-        a4 = lambda i: 3 + 2 * i
-        a1 = lambda i: 0 if i == 0 else a4(i - 1)
-        a2 = lambda i: 1 if i == 0 else a3(i - 1)
+
+        def a3(i):
+            return 2 + 2 * i
+
+        def a4(i):
+            return 3 + 2 * i
+
+        def a1(i):
+            return 0 if i == 0 else a4(i - 1)
+
+        def a2(i):
+            return 1 if i == 0 else a3(i - 1)
         self.a1, self.a2, self.a3, self.a4 = a1, a2, a3, a4
         self.nodes = 2 + 2 * n
         # springs: (a, b, module, parameter) for ka: A2A3, kb: A1A4, kc: A3A4
@@ -254,7 +266,8 @@ class CartesianStackPath:
     def descent(self, y, s):
         """Overdamped velocity: the projected force plus a pull back onto the constraints."""
         x, mu, d_spring, d_rigid = self._parts(y, s)
-        grad = (self._internal_forces(d_spring, d_rigid, np.zeros_like(mu)) - self._loads)[_FIXED:].ravel()
+        grad = (self._internal_forces(d_spring, d_rigid, np.zeros_like(mu))
+                - self._loads)[_FIXED:].ravel()
         jc = self._constraint_jacobian(d_rigid)
         # Damped (Levenberg) projection: smooth through kinematic singularities of the
         # stack, where rods fold flat onto a chord and the constraint rows degenerate.
@@ -280,7 +293,8 @@ class CartesianStackPath:
             y[:top.n_var] -= jc.T @ _solve_gram(jc, c)
         x, mu, d_spring, d_rigid = self._parts(y, s)
         jc = self._constraint_jacobian(d_rigid)
-        grad = (self._internal_forces(d_spring, d_rigid, np.zeros_like(mu)) - self._loads)[_FIXED:].ravel()
+        grad = (self._internal_forces(d_spring, d_rigid, np.zeros_like(mu))
+                - self._loads)[_FIXED:].ravel()
         y[top.n_var:] = -_solve_gram(jc, jc @ grad)
         return y
 

@@ -11,11 +11,10 @@ import math
 import numpy as np
 import pytest
 
-from tensegrity_ros.core.module import ModuleParams, InvalidParameterError, gradient, hessian
+from tensegrity_ros.core.analysis import (BRANCH_POINT, Curve, degenerate_curves, FOLD, LIMIT,
+                                          operation_range, OperationRange, two_stable_limit)
 from tensegrity_ros.core.equilibria import equilibria, equilibria_batch
-from tensegrity_ros.core.analysis import (
-    degenerate_curves, operation_range, two_stable_limit, Curve, OperationRange,
-    FOLD, BRANCH_POINT, LIMIT)
+from tensegrity_ros.core.module import gradient, hessian, InvalidParameterError, ModuleParams
 
 K = 100.0
 
@@ -353,7 +352,8 @@ def test_operation_range_random_cross_check():
                 outside_rho = end.rho + outward * 1e-3
                 if outside_rho <= 0:
                     continue
-                if equilibria(inside).num_stable == equilibria(p.with_(rho=outside_rho)).num_stable:
+                outside = p.with_(rho=outside_rho)
+                if equilibria(inside).num_stable == equilibria(outside).num_stable:
                     continue        # another branch changes its count at the same time
                 assert abs(bisect_stable_count(p, inside.rho, outside_rho) - end.rho) < 1e-6
             theta = np.array(r.theta)

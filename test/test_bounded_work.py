@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.bounded_work import Budget, Job, checkpoint
+from tensegrity_ros.core.bounded_work import Budget, checkpoint, Job
 from tensegrity_ros.core.events import Deferred, Jump, TrackingFailure
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 
@@ -282,8 +282,8 @@ def test_a_long_reset_spans_calls_keeping_the_old_state_meanwhile():
 
 
 def test_a_deferred_reset_that_finds_no_minimum_is_a_failure_keeping_the_state(monkeypatch):
-    import tensegrity_ros.core.mechanisms as mechanisms
     from tensegrity_ros.core import TrackingError
+    import tensegrity_ros.core.mechanisms as mechanisms
 
     def slow_failure(modules, thetas):
         counted(50)()

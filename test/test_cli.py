@@ -4,16 +4,16 @@ Run in-process through ``main(argv)``; one test runs the installed console scrip
 """
 import json
 import math
+from pathlib import Path
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from installed import installed_script
 from tensegrity_ros.cli import main
-from tensegrity_ros.core import ModuleParams, equilibria, equilibria_batch
+from tensegrity_ros.core import equilibria, equilibria_batch, ModuleParams
 
 # Fig. 8a of the paper: L1 = L2 = 1, F3 = F4 = 5.  C1 (branch point) and C2 (fold)
 # are the roots of the paper's eqs. (15) and (16) at F = 5.
@@ -484,7 +484,7 @@ def test_stack_solve_json_schema(capsys, argv, rhos):
     for e in eqs:
         _check_stack_equilibrium(e, n, rhos)
     # the stable equilibria are where an independent settle from them stays
-    from tensegrity_ros.core.stack import Stack, settle_stack
+    from tensegrity_ros.core.stack import settle_stack, Stack
     stack = Stack(tuple(ModuleParams(**p) for p in params))
     for e in [e for e in eqs if e['stable']][:2]:
         again = settle_stack(stack, np.array(e['theta']) + 1e-3)
@@ -667,7 +667,8 @@ def test_stack_cli_does_not_import_rclpy_or_matplotlib():
 # exact boundaries over a map; operation range; point C
 
 def paper_polynomials(F):
-    """Coefficients (in rho, highest first) of the paper's eqs. (15) and (16) at F (L = 1, k = 100)."""
+    """Coefficients (in rho, highest first) of the paper's eqs. (15) and (16) at F
+    (L = 1, k = 100)."""
     p15 = [64e12, 0, 48e8 * F**2, 0, 12e4 * F**4 - 16e8 * F**2, 0, F**6]
     p16 = [64e12, 0, 48e8 * F**2 - 192e12, 0, 12e4 * F**4 + 336e8 * F**2 + 192e12, 0,
            F**6 - 12e4 * F**4 + 48e8 * F**2 - 64e12]
@@ -742,7 +743,8 @@ def test_limit_point_c(capsys):
     doc = run_json(capsys, 'limit', '--L2', 1)
     assert doc['F3'] == pytest.approx(70.7106781187, abs=1e-6)
     assert doc['F4'] == pytest.approx(70.7106781187, abs=1e-6)
-    assert doc['rho'] == pytest.approx(0.5 / math.sqrt(2), abs=1e-9)     # L1 L2 / (2 sqrt(L1^2 + L2^2))
+    # rho = L1 L2 / (2 sqrt(L1^2 + L2^2))
+    assert doc['rho'] == pytest.approx(0.5 / math.sqrt(2), abs=1e-9)
     doc = run_json(capsys, 'limit', '--L2', 1, '--pushing')
     assert doc['F3'] == pytest.approx(-70.7106781187, abs=1e-6) and doc['side'] == 'pushing'
     doc = run_json(capsys, 'limit', '--L2', 1.5, '--k', 50)

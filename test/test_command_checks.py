@@ -1,8 +1,8 @@
 """The simulator's side-effect-free command checks (what the node rejects when it reads a
 command, before coalescing) against the documented rules (msg_docs/rho_cmd.md,
 force_a3.md): a target must be finite and inside [rho_min, rho_max]; a force component
-finite and inside the supported range (load/(k L) <= 1e4, README).  A check never changes the state, and it
-agrees with what the command itself would refuse."""
+finite and inside the supported range (load/(k L) <= 1e4, README).  A check never changes the
+state, and it agrees with what the command itself would refuse."""
 import math
 
 from hypothesis import given, settings, strategies as st

@@ -6,11 +6,11 @@ offer; everything else is coalesced.  The backlog (in arrival order within a tim
 budget, coalesced beyond it) runs on a fake clock that moves by each command's cost,
 against the rule read position by position.
 """
-import pytest
 from hypothesis import given, settings, strategies as st
+import pytest
 
-from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog,
-                                                      LatestCommands, force_key, target_key)
+from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog, force_key,
+                                                    LatestCommands, target_key)
 
 KEYS = st.sampled_from([target_key([0]), target_key([1]), target_key([0, 2]),
                         force_key(0, 'a3'), force_key(0, 'a4'), force_key(1, 'a3')])

@@ -10,14 +10,14 @@ The two explicit examples are soft necks (k ~ 10 N/m) whose branch-point landing
 1e-3 in s past the event, is 0.09 and 0.8 rad from the landing minimum at the event's
 load: it was reported there (0.011 and 0.08 rad from the rest point at the event's load).
 """
+from hypothesis import event, example, given, Phase, settings, strategies as st
 import numpy as np
 import pytest
 from scipy.optimize import brentq
-from hypothesis import Phase, event, example, given, settings, strategies as st
 
-from tensegrity_ros.core import ModuleParams, equilibria, track_module
+from tensegrity_ros.core import equilibria, ModuleParams, track_module
 from tensegrity_ros.core.continuation import TrackerSettings
-from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
+from tensegrity_ros.core.stack import settle_stack, Stack, StackPath, track_stack
 from tensegrity_ros.core.start_state import upright_guess
 from tensegrity_ros.core.tolerances import verified_minimum
 
@@ -191,8 +191,8 @@ def test_a_neck_command_from_just_past_its_passage_back_towards_it_ends_ok():
     SkylakeX BLAS kernels; 25 % failed once, Sandybridge 5e-11).  The unbuckled state
     lies at 1, the mirror image at 2.  From -10 N to 5e-11 and 3e-11 past, the steps
     stop 1.8e-10 in s short of the end (every step 'far', and every run away from the
-    branch point too): the command then ran for minutes (landings on a false fold, recursively; the node
-    gave up after its 60 s work limit); the branch point is now found from the last
+    branch point too): the command then ran for minutes (landings on a false fold, recursively; the
+    node gave up after its 60 s work limit); the branch point is now found from the last
     state of the approach that passed the margin test 100-fold (a time budget here makes
     a regression fail, not hang).  That far state's linear law put s* 3.5e-11 in s off
     on the Haswell BLAS kernel (lambda_min of the near state is known to a few per cent

@@ -11,9 +11,12 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq, fsolve
 
+from neck_path_families import paper_neck, upright
 from oracle_solver import oracle_equilibria
+from reference_paths import angle_distance, flow_to_rest, NeckSystem
 from tensegrity_ros.core import ModuleParams, settle, track_module
 from tensegrity_ros.core.continuation import TrackerSettings
+from tensegrity_ros.core.stack import settle_stack, StackPath, track_stack
 
 #: A generous bound on one command's work: the cases below take ~30 ms; on 8db3247 the
 #: first one never returned (its landing and the next step's fold alternated for ever).
@@ -124,10 +127,6 @@ def test_unequal_rods_unloaded_merge_into_the_flat_state_without_a_jump():
 
 
 # -- long perfect and 1e-9-imperfect necks under a head load: buckling is no jump ------------
-
-from neck_path_families import paper_neck, upright                      # noqa: E402
-from reference_paths import NeckSystem, angle_distance, flow_to_rest    # noqa: E402
-from tensegrity_ros.core.stack import StackPath, settle_stack, track_stack  # noqa: E402
 
 #: The reference's (quasi_static_path, 106 s) fold of the perfect N = 10 paper neck under
 #: a head load 0 -> -20 N per top node, after its passage at s = 0.0279813367.

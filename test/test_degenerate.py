@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from oracle_solver import oracle_equilibria, torus_distance
-from tensegrity_ros.core import (ModuleParams, equilibria, equilibria_batch, gradient,
+from tensegrity_ros.core import (equilibria, equilibria_batch, gradient, ModuleParams,
                                  node_positions)
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
@@ -85,7 +85,8 @@ def test_no_vertical_load(p):
     if non_flat:                                                # a mirrored pair
         assert torus_distance(non_flat[0].theta, -non_flat[1].theta) <= 1e-12
     for e in s:
-        assert np.max(np.abs(gradient(p, e.theta))) <= 1e-12 * (p.ka + p.kb + p.kc) * (p.rho + p.L1 + p.L2) ** 2
+        assert (np.max(np.abs(gradient(p, e.theta)))
+                <= 1e-12 * (p.ka + p.kb + p.kc) * (p.rho + p.L1 + p.L2) ** 2)
 
 
 @pytest.mark.parametrize('p', horizontal_points(6, 32, True) + horizontal_points(6, 33, False))
@@ -153,7 +154,8 @@ def test_tiny_rho_unloaded():
 
 
 @pytest.mark.parametrize('F', [1e4, 1e6, 1e9, 1e12])
-@pytest.mark.parametrize('direction', [(0.3, -1.0, -0.2, -0.5), (1.0, 0.0, 1.0, 0.0), (0.0, 2.0, 0.5, -1.0)])
+@pytest.mark.parametrize('direction', [(0.3, -1.0, -0.2, -0.5), (1.0, 0.0, 1.0, 0.0),
+                                       (0.0, 2.0, 0.5, -1.0)])
 def test_huge_forces_rods_align_with_the_loads(F, direction):
     d3x, d3y, d4x, d4y = direction
     p = ModuleParams(rho=0.7, L1=1.2, L2=0.8, ka=40.0, kb=90.0, kc=60.0,
@@ -165,15 +167,18 @@ def test_huge_forces_rods_align_with_the_loads(F, direction):
     tol = 10 * 100 * (p.rho + p.L1 + p.L2) / F
     (e,) = s.stable
     assert torus_distance(e.theta, (along1, along2)) < tol
-    kinds = {tuple(np.round(np.abs(np.cos((np.array(x.theta) - (along1, along2)) / 2)))): x.kind for x in s}
-    assert kinds == {(1.0, 1.0): 'minimum', (0.0, 1.0): 'saddle', (1.0, 0.0): 'saddle', (0.0, 0.0): 'maximum'}
+    kinds = {tuple(np.round(np.abs(np.cos((np.array(x.theta) - (along1, along2)) / 2)))): x.kind
+             for x in s}
+    assert kinds == {(1.0, 1.0): 'minimum', (0.0, 1.0): 'saddle', (1.0, 0.0): 'saddle',
+                     (0.0, 0.0): 'maximum'}
 
 
 # ---------------------------------------------------------------------------
 # A continuum of equilibria
 
-CONTINUUM = [dict(rho=rho, ka=ka, kb=kb, kc=kc, L1=L1, L2=L2)
-             for rho, ka, kb, kc, L1, L2 in [(0.3, 100, 100, 100, 1, 1), (1.7, 20, 300, 55, 0.4, 2.2),
+CONTINUUM = [{'rho': rho, 'ka': ka, 'kb': kb, 'kc': kc, 'L1': L1, 'L2': L2}
+             for rho, ka, kb, kc, L1, L2 in [(0.3, 100, 100, 100, 1, 1),
+                                             (1.7, 20, 300, 55, 0.4, 2.2),
                                              (0.01, 5, 7, 9, 3, 0.2)]]
 
 
@@ -275,7 +280,8 @@ def boundary_points():
         r16 = _roots([64e12, 48e8 * F ** 2 - 192e12, 12e4 * F ** 4 + 336e8 * F ** 2 + 192e12,
                       F ** 6 - 12e4 * F ** 4 + 48e8 * F ** 2 - 64e12])
         for r in r15 + r16:
-            for rel in (0.0, 1e-15, -1e-15, 1e-13, -1e-13, 1e-11, -1e-11, 1e-9, -1e-9, 1e-7, -1e-7):
+            for rel in (0.0, 1e-15, -1e-15, 1e-13, -1e-13, 1e-11, -1e-11, 1e-9, -1e-9,
+                        1e-7, -1e-7):
                 out.append((r * (1 + rel), F))
     return out
 
@@ -302,16 +308,18 @@ def test_on_and_near_general_folds():
     points = []
     while len(points) < 400:
         k = rng.uniform(10, 300, 3)
-        base = dict(L1=rng.uniform(0.3, 2.5), L2=rng.uniform(0.3, 2.5), ka=k[0], kb=k[1], kc=k[2],
-                    f3x=rng.normal(0, 10), f3y=rng.normal(0, 20), f4x=rng.normal(0, 10),
-                    f4y=rng.normal(0, 20))
+        base = {'L1': rng.uniform(0.3, 2.5), 'L2': rng.uniform(0.3, 2.5),
+                'ka': k[0], 'kb': k[1], 'kc': k[2],
+                'f3x': rng.normal(0, 10), 'f3y': rng.normal(0, 20), 'f4x': rng.normal(0, 10),
+                'f4y': rng.normal(0, 20)}
         rhos = np.linspace(0.01, 3, 40)
         counts = [len(equilibria(ModuleParams(rho=r, **base))) for r in rhos]
         for i in np.nonzero(np.diff(counts))[0]:
             lo, hi = rhos[i], rhos[i + 1]
             for _ in range(55):
                 mid = 0.5 * (lo + hi)
-                lo, hi = (mid, hi) if len(equilibria(ModuleParams(rho=mid, **base))) == counts[i] else (lo, mid)
+                same = len(equilibria(ModuleParams(rho=mid, **base))) == counts[i]
+                lo, hi = (mid, hi) if same else (lo, mid)
             for rel in (0.0, 1e-15, -1e-15, 1e-12, -1e-12, 1e-9, -1e-9, 1e-7, -1e-7):
                 points.append(ModuleParams(rho=lo * (1 + rel), **base))
     for p in points:
@@ -340,11 +348,11 @@ def test_near_fold_with_unresolved_polynomial_roots():
 
 def test_batch_blocks_join_seamlessly():
     """A batch larger than one block gives exactly what block-sized calls give."""
-    from tensegrity_ros.core import equilibria as eq_module
     from tensegrity_ros.core.equilibria import BATCH_BLOCK, equilibria_batch
     rng = np.random.default_rng(5)
     n = 2 * BATCH_BLOCK + 17
-    args = dict(rho=rng.uniform(0.05, 2, n), f3y=rng.uniform(-10, 10, n), f4y=rng.uniform(-10, 10, n))
+    args = {'rho': rng.uniform(0.05, 2, n), 'f3y': rng.uniform(-10, 10, n),
+            'f4y': rng.uniform(-10, 10, n)}
     whole = equilibria_batch(**args)
     assert whole.theta.shape == (n, 6, 2)
     for start in (0, BATCH_BLOCK - 3, n - 20):
@@ -377,10 +385,11 @@ def test_batch_solves_generic_rows_itself_and_agrees_with_the_scalar_solver(monk
     eq_module = importlib.import_module('tensegrity_ros.core.batch_solver')
     rng = np.random.default_rng(11)
     n = 20_000
-    args = dict(rho=rng.uniform(0.01, 3, n), L1=rng.uniform(0.2, 3, n), L2=rng.uniform(0.2, 3, n),
-                ka=rng.uniform(10, 500, n), kb=rng.uniform(10, 500, n), kc=rng.uniform(10, 500, n),
-                f3x=rng.normal(0, 20, n), f3y=rng.normal(0, 20, n), f4x=rng.normal(0, 20, n),
-                f4y=rng.normal(0, 20, n), m1=rng.uniform(0, 2, n), m2=rng.uniform(0, 2, n))
+    args = {'rho': rng.uniform(0.01, 3, n), 'L1': rng.uniform(0.2, 3, n),
+            'L2': rng.uniform(0.2, 3, n), 'ka': rng.uniform(10, 500, n),
+            'kb': rng.uniform(10, 500, n), 'kc': rng.uniform(10, 500, n),
+            'f3x': rng.normal(0, 20, n), 'f3y': rng.normal(0, 20, n), 'f4x': rng.normal(0, 20, n),
+            'f4y': rng.normal(0, 20, n), 'm1': rng.uniform(0, 2, n), 'm2': rng.uniform(0, 2, n)}
     scalar_rows = []
     solve_scalar = eq_module._solve_scalar
     monkeypatch.setattr(eq_module, '_solve_scalar',

@@ -7,14 +7,14 @@ symmetric branch, and an overdamped gradient flow integrated here.
 """
 import math
 
+from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
 from scipy.integrate import cumulative_trapezoid, solve_ivp
 from scipy.optimize import fsolve
 
 from tensegrity_ros.core import InvalidParameterError, ModuleParams
-from tensegrity_ros.core.dynamics import SolverSettings, simulate_snap
+from tensegrity_ros.core.dynamics import simulate_snap, SolverSettings
 
 G = 9.80665
 MASS = 0.05                                   # kg per rod, as in the issue's reference
@@ -237,12 +237,12 @@ def test_the_history_starts_at_rest_on_the_stable_start_and_follows_the_ramp():
 # bad input
 
 @pytest.mark.parametrize('kwargs, message', [
-    (dict(rate=0.0), 'rate'), (dict(rate=float('nan')), 'rate'),
-    (dict(damping=-1.0), 'damping'), (dict(hold=-1.0), 'hold'),
-    (dict(rho_end=float('inf')), 'rho1'),
+    ({'rate': 0.0}, 'rate'), ({'rate': float('nan')}, 'rate'),
+    ({'damping': -1.0}, 'damping'), ({'hold': -1.0}, 'hold'),
+    ({'rho_end': float('inf')}, 'rho1'),
 ])
 def test_bad_input_is_refused_naming_what_it_got(kwargs, message):
-    args = dict(params=FIG8A, rho_end=0.6, rate=0.1, damping=0.1, theta_guess=LOWER)
+    args = {'params': FIG8A, 'rho_end': 0.6, 'rate': 0.1, 'damping': 0.1, 'theta_guess': LOWER}
     args.update(kwargs)
     with pytest.raises(InvalidParameterError, match=message):
         simulate_snap(**args)
@@ -353,7 +353,7 @@ def test_a_bump_of_the_computed_energy_after_it_settled_does_not_move_the_settli
     (an integration error: on the Haswell kernel a restart of the held integration once
     kicked fig. 8a's energy from 2.6e-15 to 2.3e-13 J, 7 s after it had settled) must not
     move it.  Fails before (the last exit: 7.0 s instead of 2 ln 10 = 4.6052 s)."""
-    from tensegrity_ros.core.transient import Rest, figures
+    from tensegrity_ros.core.transient import figures, Rest
 
     def energy(t):            # e^(-t) falls through 1e-2 at t = 2 ln 10; a bump at 7 s
         t = np.asarray(t, dtype=float)

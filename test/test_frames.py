@@ -7,8 +7,7 @@ at the top chord's midpoint with the head_pose angle, for one module and a neck.
 import math
 from pathlib import Path
 
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 

@@ -4,12 +4,12 @@ hand-placed NULs."""
 import math
 import struct
 
-import pytest
 from hypothesis import given, settings, strategies as st
+import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
-from tensegrity_ros.joint_state_names import NamesAndPositions, exact_names, names_and_positions
+from tensegrity_ros.joint_state_names import exact_names, names_and_positions, NamesAndPositions
 
 NAMES = st.lists(st.text(st.characters(blacklist_characters='\x00',
                                        blacklist_categories=('Cs',)), max_size=12),

@@ -5,13 +5,13 @@ terminal's SIGINT to its foreground job) with this interpreter as the node's Pyt
 fresh set-up stamp, so it needs no .venv and runs the same in a colcon workspace.
 """
 import os
+from pathlib import Path
 import pty
 import select
 import shutil
 import signal
 import sys
 import time
-from pathlib import Path
 
 import pytest
 

@@ -10,11 +10,10 @@ import warnings
 import numpy as np
 import pytest
 
-from tensegrity_ros.core import (ModuleParams, InvalidParameterError, PARAMETER_NAMES,
-                                 STANDARD_GRAVITY, energy, gradient, hessian,
-                                 actuator_force, node_positions, equilibria,
-                                 equilibria_batch)
-from tensegrity_ros.core.module import parameter_gradient, gradient_parameter_jacobian
+from tensegrity_ros.core import (actuator_force, energy, equilibria, equilibria_batch, gradient,
+                                 hessian, InvalidParameterError, ModuleParams, node_positions,
+                                 PARAMETER_NAMES, STANDARD_GRAVITY)
+from tensegrity_ros.core.module import gradient_parameter_jacobian, parameter_gradient
 
 H = 1e-6        # finite-difference step (central differences: error ~ H^2)
 
@@ -37,7 +36,8 @@ def cases(n, seed):
 def derivative_scale(p):
     """Magnitude of the energy's derivatives, for relative tolerances."""
     return (max(p.ka, p.kb, p.kc) * (p.rho + p.L1 + p.L2) ** 2
-            + (abs(p.f3x) + abs(p.f3y_total) + abs(p.f4x) + abs(p.f4y_total)) * (p.L1 + p.L2 + p.rho))
+            + (abs(p.f3x) + abs(p.f3y_total) + abs(p.f4x) + abs(p.f4y_total))
+            * (p.L1 + p.L2 + p.rho))
 
 
 def fd_gradient(f, theta):
@@ -104,7 +104,8 @@ def test_energy_from_node_positions(p, theta):
     loads = -(p.f3x * a3[0] + p.f3y * a3[1] + p.f4x * a4[0] + p.f4y * a4[1])
     # a uniform rod's potential is m g times the height of its centre
     weights = p.m1 * p.g * a3[1] / 2 + p.m2 * p.g * a4[1] / 2
-    assert float(energy(p, theta)) == pytest.approx(springs + loads + weights, abs=1e-12 * derivative_scale(p))
+    assert float(energy(p, theta)) == pytest.approx(springs + loads + weights,
+                                                    abs=1e-12 * derivative_scale(p))
 
 
 @pytest.mark.parametrize('p, theta', cases(20, 5))
@@ -117,8 +118,10 @@ def test_actuator_force_is_dU_drho(p, theta):
 def test_actuator_force_reported_at_equilibria():
     for p, _ in cases(10, 6):
         for e in equilibria(p):
-            assert e.actuator_force == pytest.approx(float(actuator_force(p, e.theta)), abs=1e-9 * derivative_scale(p))
-            assert e.energy == pytest.approx(float(energy(p, e.theta)), abs=1e-9 * derivative_scale(p))
+            assert e.actuator_force == pytest.approx(float(actuator_force(p, e.theta)),
+                                                     abs=1e-9 * derivative_scale(p))
+            assert e.energy == pytest.approx(float(energy(p, e.theta)),
+                                             abs=1e-9 * derivative_scale(p))
 
 
 @pytest.mark.parametrize('p, theta', cases(15, 7))
@@ -171,9 +174,12 @@ def test_rod_weights_are_nodal_forces():
         assert weighted.f4y_total == pytest.approx(loaded.f4y)
         theta = rng.uniform(-math.pi, math.pi, (5, 2))
         scale = derivative_scale(weighted)
-        assert np.allclose(energy(weighted, theta), energy(loaded, theta), rtol=0, atol=1e-12 * scale)
-        assert np.allclose(gradient(weighted, theta), gradient(loaded, theta), rtol=0, atol=1e-12 * scale)
-        assert np.allclose(hessian(weighted, theta), hessian(loaded, theta), rtol=0, atol=1e-12 * scale)
+        assert np.allclose(energy(weighted, theta), energy(loaded, theta),
+                           rtol=0, atol=1e-12 * scale)
+        assert np.allclose(gradient(weighted, theta), gradient(loaded, theta),
+                           rtol=0, atol=1e-12 * scale)
+        assert np.allclose(hessian(weighted, theta), hessian(loaded, theta),
+                           rtol=0, atol=1e-12 * scale)
         a, b = equilibria(weighted), equilibria(loaded)
         assert len(a) == len(b) and a.num_stable == b.num_stable
         assert np.allclose([e.theta for e in a], [e.theta for e in b], atol=1e-9)
@@ -203,7 +209,8 @@ def test_vectorised_shapes():
 
 def test_paper_constructor_and_vector_round_trip():
     p = ModuleParams.paper(0.75, L2=1.5, F3=-10, F4=5, k=80)
-    assert (p.L1, p.L2, p.ka, p.kb, p.kc, p.f3x, p.f3y, p.f4x, p.f4y) == (1, 1.5, 80, 80, 80, 0, -10, 0, 5)
+    assert ((p.L1, p.L2, p.ka, p.kb, p.kc, p.f3x, p.f3y, p.f4x, p.f4y)
+            == (1, 1.5, 80, 80, 80, 0, -10, 0, 5))
     assert ModuleParams.from_vector(p.vector()) == p
     assert p.with_(rho=1.25).rho == 1.25 and p.rho == 0.75
     with pytest.raises(Exception):
@@ -220,8 +227,8 @@ BAD_FOR_ALL = [math.nan, math.inf, -math.inf, np.nan, np.float64('inf'), 'abc', 
 
 
 def valid_kwargs():
-    return dict(rho=0.5, L1=1.0, L2=1.2, ka=100.0, kb=90.0, kc=80.0, f3x=0.5, f3y=-1.0,
-                f4x=0.3, f4y=2.0, m1=0.1, m2=0.2, g=9.81)
+    return {'rho': 0.5, 'L1': 1.0, 'L2': 1.2, 'ka': 100.0, 'kb': 90.0, 'kc': 80.0,
+            'f3x': 0.5, 'f3y': -1.0, 'f4x': 0.3, 'f4y': 2.0, 'm1': 0.1, 'm2': 0.2, 'g': 9.81}
 
 
 def bad_id(value):
@@ -276,12 +283,16 @@ def test_magnitudes_outside_the_supported_range_are_refused(name, bad):
 
 EXTREMES = [  # (parameters, status): where one term dominates by ~1e100 the equations
     # vanish within rounding relative to it, a continuum
-    (dict(rho=0.7, L1=1e50, L2=1e50, kc=1e50, f4y=1e50), 'continuum'),
-    (dict(rho=0.7, L1=1e50, L2=1e50, ka=1e-50, kb=1e-50, kc=1e-50, f4y=1.0, f3x=-0.3), 'ok'),
-    (dict(rho=1e-50, L1=1e-50, L2=2e-50, ka=1e-50, kb=1e-50, kc=1e-50, f3y=-1e-50), 'continuum'),
-    (dict(rho=0.5, L2=1e-50, kc=1e-50, f3y=1e50, f4y=-1e50, m1=1e50), 'ok'),
-    (dict(rho=1e50, L1=1e50, L2=1e50, ka=1e50, kb=1e50, kc=1e50, f3y=1e50, f4y=-1e50), 'ok'),
-    (dict(rho=1e-50, L1=1e-50, L2=1e-50, ka=1e50, kb=1e50, kc=1e50, f3y=1e-3, f4x=2e-3), 'ok'),
+    ({'rho': 0.7, 'L1': 1e50, 'L2': 1e50, 'kc': 1e50, 'f4y': 1e50}, 'continuum'),
+    ({'rho': 0.7, 'L1': 1e50, 'L2': 1e50, 'ka': 1e-50, 'kb': 1e-50, 'kc': 1e-50,
+      'f4y': 1.0, 'f3x': -0.3}, 'ok'),
+    ({'rho': 1e-50, 'L1': 1e-50, 'L2': 2e-50, 'ka': 1e-50, 'kb': 1e-50, 'kc': 1e-50,
+      'f3y': -1e-50}, 'continuum'),
+    ({'rho': 0.5, 'L2': 1e-50, 'kc': 1e-50, 'f3y': 1e50, 'f4y': -1e50, 'm1': 1e50}, 'ok'),
+    ({'rho': 1e50, 'L1': 1e50, 'L2': 1e50, 'ka': 1e50, 'kb': 1e50, 'kc': 1e50,
+      'f3y': 1e50, 'f4y': -1e50}, 'ok'),
+    ({'rho': 1e-50, 'L1': 1e-50, 'L2': 1e-50, 'ka': 1e50, 'kb': 1e50, 'kc': 1e50,
+      'f3y': 1e-3, 'f4x': 2e-3}, 'ok'),
 ]
 
 
@@ -325,11 +336,11 @@ def test_forces_may_have_any_sign():
 
 
 def test_message_names_parameter_and_value():
-    with pytest.raises(InvalidParameterError, match=r"kb.*-3\.5"):
+    with pytest.raises(InvalidParameterError, match=r'kb.*-3\.5'):
         ModuleParams(rho=1.0, kb=-3.5)
-    with pytest.raises(InvalidParameterError, match=r"L2.*nan"):
+    with pytest.raises(InvalidParameterError, match=r'L2.*nan'):
         ModuleParams.paper(0.5, L2=float('nan'))
-    with pytest.raises(InvalidParameterError, match="rho"):
+    with pytest.raises(InvalidParameterError, match='rho'):
         ModuleParams.paper(0.0)
     assert issubclass(InvalidParameterError, ValueError)
 

@@ -2,11 +2,11 @@
 transient act on the moving rods, bad commands change nothing."""
 import math
 
+from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
 
-from tensegrity_ros.core import (InvalidParameterError, ModuleParams, actuator_force, settle,
+from tensegrity_ros.core import (actuator_force, InvalidParameterError, ModuleParams, settle,
                                  simulate_snap)
 from tensegrity_ros.core.moving_module import MovingModule
 

@@ -4,9 +4,9 @@ energy is kept without damping and the dissipated power is sum c theta'^2 with i
 oscillations have the frequencies sqrt(eig(M^-1 H_reduced)) (all from the test's own
 forward kinematics), commands and design changes act on the moving neck,
 and heavy damping lands where the quasi-static stack tracker lands."""
+from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
 from scipy.integrate import simpson, solve_ivp
 from scipy.linalg import eigh, null_space
 
@@ -17,15 +17,14 @@ from tensegrity_ros.core.moving_module import MovingModule
 from tensegrity_ros.core.moving_neck import MovingNeck
 from tensegrity_ros.core.neck_dynamics import NeckEquations, simulate_neck_snap
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
-from tensegrity_ros.core.stack import Stack, settle_stack
+from tensegrity_ros.core.stack import settle_stack, Stack
 from tensegrity_ros.core.transient import RhoRamp
-
 from test_moving_module import drive
-from test_neck_dynamics import FIG8A, NECK, energy, forward
+from test_neck_dynamics import energy, FIG8A, forward, NECK
 
 # config/neck.yaml: three modules, 20 g rods, 0.5 N on each head node; its m2 has a fold
 # at rho = 0.1127 on the way up
-_BASE = dict(L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02)
+_BASE = {'L1': 0.12, 'L2': 0.12, 'ka': 300.0, 'kb': 300.0, 'kc': 300.0, 'm1': 0.02, 'm2': 0.02}
 BIRD = Stack((ModuleParams(rho=0.09, **_BASE), ModuleParams(rho=0.085, **_BASE),
               ModuleParams(rho=0.08, f3y=-0.5, f4y=-0.5, **_BASE)))
 UPRIGHT = [[0.754, 0.754], [0.813, 0.813], [0.831, 0.831]]

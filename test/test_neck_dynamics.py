@@ -6,7 +6,7 @@ import pytest
 
 from tensegrity_ros.core import InvalidParameterError, ModuleParams, simulate_snap
 from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
-from tensegrity_ros.core.stack import Stack, settle_stack
+from tensegrity_ros.core.stack import settle_stack, Stack
 
 G = 9.80665
 FIG8A = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)
@@ -100,7 +100,7 @@ def test_the_overshoot_of_a_rod_swinging_through_pi_is_read_on_continuous_angles
     2 pi.  The overshoot was read on wrapped angles (1.423 rad); on the continuous
     trajectory it is 0.730 rad, as MuJoCo finds.  The reference here: the history's own
     angles unwrapped by numpy, the largest swing past the rest angle after the onset."""
-    base = dict(L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02)
+    base = {'L1': 0.12, 'L2': 0.12, 'ka': 300.0, 'kb': 300.0, 'kc': 300.0, 'm1': 0.02, 'm2': 0.02}
     neck = Stack((ModuleParams(rho=0.09, **base), ModuleParams(rho=0.085, **base),
                   ModuleParams(rho=0.08, f3y=-3.0, f4y=-3.1, **base)))
     snap = simulate_neck_snap(neck, [0.05, 0.085, 0.08], 0.05, 0.01,
@@ -123,7 +123,7 @@ def test_the_overshoot_of_a_rod_swinging_through_pi_is_read_on_continuous_angles
 def _uneven_neck_equations(extend_ramp):
     from tensegrity_ros.core.neck_dynamics import NeckEquations
     from tensegrity_ros.core.transient import RhoRamp
-    base = dict(L1=0.12, L2=0.13, ka=300.0, kb=310.0, kc=290.0, m1=0.02, m2=0.025)
+    base = {'L1': 0.12, 'L2': 0.13, 'ka': 300.0, 'kb': 310.0, 'kc': 290.0, 'm1': 0.02, 'm2': 0.025}
     mods = (ModuleParams(rho=0.09, **base), ModuleParams(rho=0.085, f3x=0.3, **base),
             ModuleParams(rho=0.08, f3y=-0.5, f4y=-0.6, **base))
     eq = settle_stack(Stack(mods), [[0.754, 0.754], [0.813, 0.813], [0.831, 0.831]])

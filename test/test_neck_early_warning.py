@@ -13,7 +13,7 @@ import pytest
 from tensegrity_ros.core import ModuleParams
 from tensegrity_ros.core.events import BranchEnd, Jump, JumpAhead
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
-from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
+from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
 
 #: Counting clocks (check points): `make test-numerics` runs it under other CPUs' arithmetic,
 #: where the work a path takes may differ.

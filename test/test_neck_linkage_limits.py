@@ -12,12 +12,11 @@ limit (the state closes in on the flat state like a square root).
 import numpy as np
 import pytest
 
+from reference_paths import (angle_distance, critical_solve, flow_to_rest, ModuleSystem,
+                             NeckSystem, quasi_static_path)
 from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
 from tensegrity_ros.core.simulator import Simulator
-
-from reference_paths import (ModuleSystem, NeckSystem, angle_distance, critical_solve,
-                             flow_to_rest, quasi_static_path)
+from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics
@@ -195,11 +194,14 @@ def test_a_buckling_next_to_a_linkage_limit_is_the_reference_paths():
     the reference's end state or its mirror image: the neck and its state are
     mirror-symmetric, so the side the passage buckles to is a convention, and which one
     each takes turns on rounding (the Nehalem BLAS kernel's tracker took the other)."""
-    neck = lambda rho1: Stack((
-        ModuleParams(rho=0.15, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02),
-        ModuleParams(rho=rho1, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02),
-        ModuleParams(rho=0.09, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02, m2=0.02,
-                     f3y=1.0, f4y=1.0)))
+    def neck(rho1):
+        return Stack((
+            ModuleParams(rho=0.15, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0,
+                         m1=0.02, m2=0.02),
+            ModuleParams(rho=rho1, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0,
+                         m1=0.02, m2=0.02),
+            ModuleParams(rho=0.09, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0,
+                         m1=0.02, m2=0.02, f3y=1.0, f4y=1.0)))
     state = np.array([0.28968699, 2.85190566, 0.78366205, 2.3579306, 0.74311249, 2.39848016,
                       1.89924432, 0.78994397])
     start, end = neck(0.08), neck(0.13)
@@ -223,8 +225,10 @@ def test_a_jump_that_lands_past_its_event_says_where_its_landing_is_an_equilibri
     m1 0.0899946 -> 0.0900446 m), the jump given by hand: that one is no jump (above)."""
     from tensegrity_ros import ros_conversions
     from tensegrity_ros.core.mechanisms import make_jump
-    module = lambda rho, load=0.0: ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
-                                                kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
+
+    def module(rho, load=0.0):
+        return ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
+                            kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
     at = lambda rho1: (module(0.15), module(rho1), module(0.09, 1.0))     # noqa: E731
     fold, landing = 0.0899946, 0.0900446
     raw = ('fold', 0.19989, at(fold), np.zeros((3, 2)), np.full((3, 2), 0.1), False,
@@ -250,8 +254,9 @@ def test_a_command_from_a_state_verified_on_the_commands_scale_is_not_refused():
     refused that verified state; the TrackingError escaped the command, which failed as
     'the start state is not a stable equilibrium' although the start was one (lambda_min
     20.9 N/m).  It now ends ok on a stable equilibrium of the reference."""
-    module = lambda rho, load=0.0: ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
-                                                kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
+    def module(rho, load=0.0):
+        return ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
+                            kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
     start = Stack((module(0.06), module(0.12), module(0.14, -10.0)))
     end = start.with_module(1, rho=0.06)
     # the simulator's state (absolute rod angles, chord multipliers), as it held it
@@ -277,8 +282,9 @@ def test_a_pitchfork_next_to_a_linkage_limit_is_passed_as_the_reference_passes_i
     ill-conditioned (a chord multiplier amplifies a 1e-5 asymmetry of the mode: 2.6e-3
     against the 1e-6 branch tolerance).  The reference passes it continuously; so must
     the tracker, ending where the reference ends (or on its mirror image)."""
-    module = lambda rho: ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
-                                      kc=300.0, m1=0.02, m2=0.02)
+    def module(rho):
+        return ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
+                            kc=300.0, m1=0.02, m2=0.02)
     start = Stack((module(0.13), module(0.09), module(0.05)))
     end = start.with_module(1, rho=0.15)
     held = settle_stack(start, [[-0.411138, -0.411138], [0.94797, 0.94797],
@@ -297,8 +303,9 @@ def test_a_pitchfork_next_to_a_linkage_limit_is_passed_as_the_reference_passes_i
 
 def neck_yaml(rhos, head=0.0):
     """config/neck.yaml's modules at actuator lengths ``rhos``, ``head`` N at each top node."""
-    module = lambda rho, load=0.0: ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
-                                                kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
+    def module(rho, load=0.0):
+        return ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
+                            kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
     return Stack((module(rhos[0]), module(rhos[1]), module(rhos[2], head)))
 
 
@@ -360,7 +367,8 @@ def test_a_command_from_two_flat_modules_leaves_them():
     track = track_stack(start, end, held)
     assert track.status == 'ok', track.message
     for jump in track.jumps:
-        s = (jump.landing_stack.modules[0].rho - start.modules[0].rho) / (0.12 - start.modules[0].rho)
+        rho0 = start.modules[0].rho
+        s = (jump.landing_stack.modules[0].rho - rho0) / (0.12 - rho0)
         assert_stable_for_the_reference(start, end, jump.to_theta, s)
     assert_stable_for_the_reference(end, end, track.final.theta, 0.0)
 
@@ -530,8 +538,9 @@ def test_a_buckled_neck_back_onto_its_symmetric_branch_past_a_flat_module_does_n
     Newton from the critical state does not converge (its Jacobian is singular): a fold
     jump of 0.017 rad was reported.  The reference has no jump; neither has the tracker
     now, and both end on the same state."""
-    module = lambda rho, load=0.0: ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
-                                                kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
+    def module(rho, load=0.0):
+        return ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
+                            kc=300.0, m1=0.02, m2=0.02, f3y=load, f4y=load)
     start = Stack((module(0.15), module(0.14), module(0.14, -0.5)))
     end = Stack((module(0.15), module(0.05), module(0.07, -0.5)))
     state = np.array([0.5615421196209428, 3.7262394299446866, 0.6430744154901497,

@@ -121,9 +121,9 @@ def test_a_neck_snaps_through_a_fold_and_reports_the_figures_at_rest(harness):
     fold (rho 0.1127); the jump comes when the neck rests, with the figures of the core's
     offline transient of the same profile, every module's on the way."""
     from std_msgs.msg import Float64
-    from test_moving_neck import ACROSS_THE_FOLD, BIRD, UPRIGHT
 
     from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
+    from test_moving_neck import ACROSS_THE_FOLD, BIRD, UPRIGHT
     from test_node_neck import MODULES, Neck
 
     extra = {'dynamics': True}

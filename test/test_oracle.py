@@ -15,15 +15,15 @@ import numpy as np
 import pytest
 
 from oracle_solver import oracle_equilibria, torus_distance
-from tensegrity_ros.core import ModuleParams, equilibria, equilibria_batch, gradient
+from tensegrity_ros.core import equilibria, equilibria_batch, gradient, ModuleParams
 
 POSITION_TOL = 1e-8
 
 
 def _base(rng):
     k = rng.uniform(5.0, 500.0, 3)                       # three different stiffnesses
-    return dict(rho=rng.uniform(0.01, 3.0), L1=rng.uniform(0.2, 3.0), L2=rng.uniform(0.2, 3.0),
-                ka=k[0], kb=k[1], kc=k[2])
+    return {'rho': rng.uniform(0.01, 3.0), 'L1': rng.uniform(0.2, 3.0),
+            'L2': rng.uniform(0.2, 3.0), 'ka': k[0], 'kb': k[1], 'kc': k[2]}
 
 
 def _forces(rng, size):
@@ -86,8 +86,8 @@ def _rod_weights(rng):
 
 
 def _paper(rng):
-    return dict(rho=rng.uniform(0.01, 2.0), L1=1.0, L2=rng.uniform(0.2, 2.0), ka=100.0,
-                kb=100.0, kc=100.0, f3y=rng.uniform(-10, 10), f4y=rng.uniform(-10, 10))
+    return {'rho': rng.uniform(0.01, 2.0), 'L1': 1.0, 'L2': rng.uniform(0.2, 2.0), 'ka': 100.0,
+            'kb': 100.0, 'kc': 100.0, 'f3y': rng.uniform(-10, 10), 'f4y': rng.uniform(-10, 10)}
 
 
 FAMILIES = [(_general, 70), (_nearly_unloaded, 20), (_symmetric, 20), (_nearly_symmetric, 20),
@@ -97,10 +97,10 @@ FAMILIES = [(_general, 70), (_nearly_unloaded, 20), (_symmetric, 20), (_nearly_s
 #: Points that once failed (kept as regressions): two equilibria with nearly the
 #: same t1 under huge loads, where t2 recovered from g1 alone was 0.03 rad off.
 REGRESSIONS = [
-    dict(rho=0.9805845867878946, L1=2.9233344904586906, L2=0.8321655537198296,
-         ka=38.30354283247452, kb=247.77717598936218, kc=22.975421574609435,
-         f3x=13989601.64215905, f3y=3669599.799102376, f4x=15690036.63533434,
-         f4y=-4551497.423459583),
+    {'rho': 0.9805845867878946, 'L1': 2.9233344904586906, 'L2': 0.8321655537198296,
+     'ka': 38.30354283247452, 'kb': 247.77717598936218, 'kc': 22.975421574609435,
+     'f3x': 13989601.64215905, 'f3y': 3669599.799102376, 'f4x': 15690036.63533434,
+     'f4y': -4551497.423459583},
 ]
 
 

@@ -10,8 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from tensegrity_ros.core import (ModuleParams, equilibria, equilibria_batch, hessian,
-                                 node_positions)
+from tensegrity_ros.core import equilibria, equilibria_batch, hessian, ModuleParams, node_positions
 from tensegrity_ros.core.equilibria import DEGENERACY_TOL
 
 TWO_PI = 2 * math.pi
@@ -119,8 +118,10 @@ def test_unloaded_flat_configurations_and_parallelogram(rho, L1, L2, k):
             q = ((L1 + L2) ** 2 - 4 * rho ** 2) * ((L1 - L2) ** 2 - 4 * rho ** 2)
             assert q < 0
             assert abs(y3) == pytest.approx(math.sqrt(-q) / (4 * rho), abs=1e-12 * L1)
-            assert L1 * math.cos(e.theta1) == pytest.approx((L1 ** 2 - L2 ** 2 + 4 * rho ** 2) / (4 * rho), abs=1e-12 * L1)
-            assert L2 * math.cos(e.theta2) == pytest.approx((L2 ** 2 - L1 ** 2 + 4 * rho ** 2) / (4 * rho), abs=1e-12 * L1)
+            assert L1 * math.cos(e.theta1) == pytest.approx(
+                (L1 ** 2 - L2 ** 2 + 4 * rho ** 2) / (4 * rho), abs=1e-12 * L1)
+            assert L2 * math.cos(e.theta2) == pytest.approx(
+                (L2 ** 2 - L1 ** 2 + 4 * rho ** 2) / (4 * rho), abs=1e-12 * L1)
             assert math.atan2(abs(y3), x3) == pytest.approx(
                 math.atan2(math.sqrt(-q), L1 ** 2 - L2 ** 2 + 4 * rho ** 2), abs=1e-12)
     else:
@@ -133,8 +134,10 @@ def test_unloaded_flat_configurations_and_parallelogram(rho, L1, L2, k):
 
 def test_unloaded_region_on_a_fine_grid():
     """The lines 2rho - L2 - 1 = 0, 2rho - L2 + 1 = 0, 2rho + L2 - 1 = 0 (L1 = 1), fig. 3."""
-    rho, L2 = [a.ravel() for a in np.meshgrid(np.linspace(0.005, 4, 250), np.linspace(0.005, 4, 250))]
-    lines = np.minimum.reduce([abs(2 * rho - L2 - 1), abs(2 * rho - L2 + 1), abs(2 * rho + L2 - 1)])
+    rho, L2 = [a.ravel() for a in np.meshgrid(np.linspace(0.005, 4, 250),
+                                              np.linspace(0.005, 4, 250))]
+    lines = np.minimum.reduce([abs(2 * rho - L2 - 1), abs(2 * rho - L2 + 1),
+                               abs(2 * rho + L2 - 1)])
     keep = lines > 1e-3
     rho, L2 = rho[keep], L2[keep]
     b = equilibria_batch(rho, L2=L2)
@@ -191,7 +194,8 @@ def _real_positive_roots_in_rho(coefficients_in_rho2):
 
 def eq15_roots(F):
     """Eq. (15) (L = 1, k = 100) as a cubic in rho^2."""
-    return _real_positive_roots_in_rho([64e12, 48e8 * F ** 2, 12e4 * F ** 4 - 16e8 * F ** 2, F ** 6])
+    return _real_positive_roots_in_rho([64e12, 48e8 * F ** 2, 12e4 * F ** 4 - 16e8 * F ** 2,
+                                        F ** 6])
 
 
 def eq16_roots(F):
@@ -211,9 +215,11 @@ def test_eq15_eq16_as_transcribed():
                - 12e4 * F ** 4 + 336e8 * F ** 2 * rho ** 2 - 192e12 * rho ** 4 + 48e8 * F ** 2
                + 192e12 * rho ** 2 - 64e12)
         x = rho ** 2
-        assert np.polyval([64e12, 48e8 * F ** 2, 12e4 * F ** 4 - 16e8 * F ** 2, F ** 6], x) == pytest.approx(e15, rel=1e-9, abs=1e-3)
+        assert np.polyval([64e12, 48e8 * F ** 2, 12e4 * F ** 4 - 16e8 * F ** 2, F ** 6],
+                          x) == pytest.approx(e15, rel=1e-9, abs=1e-3)
         assert np.polyval([64e12, 48e8 * F ** 2 - 192e12, 12e4 * F ** 4 + 336e8 * F ** 2 + 192e12,
-                           F ** 6 - 12e4 * F ** 4 + 48e8 * F ** 2 - 64e12], x) == pytest.approx(e16, rel=1e-9, abs=1e-3)
+                           F ** 6 - 12e4 * F ** 4 + 48e8 * F ** 2 - 64e12],
+                          x) == pytest.approx(e16, rel=1e-9, abs=1e-3)
 
 
 def stable_count(rho, F):
@@ -400,7 +406,8 @@ def test_fig8b_c1_becomes_a_fold_for_l2_1_05():
     eps = 1e-6
     s, near = lower_branch(hi + eps, L2=1.05)
     (minimum,) = [e for e in near if e.stable]
-    partner = min((e for e in near if not e.stable), key=lambda e: torus_distance(e.theta, minimum.theta))
+    partner = min((e for e in near if not e.stable),
+                  key=lambda e: torus_distance(e.theta, minimum.theta))
     assert partner.kind == 'saddle'
     assert torus_distance(partner.theta, minimum.theta) < 10 * math.sqrt(eps)
     # past the boundary nothing is left near the lost minimum: a fold, not a pitchfork

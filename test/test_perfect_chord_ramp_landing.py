@@ -12,8 +12,8 @@ the lowest energy (it now takes the steepest half-branch and lands on the tracke
 landing or its mirror image).  An overdamped mechanism does not choose by the energy
 of where a way leads: the released flows below pass module 0's change point (0, pi)
 coming in on the anti-parallelogram branch and leave on the parallelogram one, the
-half-branch of steepest descent there (-dU per unit length 7.07 against 1.64 J/rad with pivot damping,
-4.08 against 0.48 in the node metric; both leave downhill, so the reference's test
+half-branch of steepest descent there (-dU per unit length 7.07 against 1.64 J/rad with pivot
+damping, 4.08 against 0.48 in the node metric; both leave downhill, so the reference's test
 "the velocity points out" keeps both and its old energy rule picked the wrong one).
 
 The check (test/node_spring_flow.py, sharing no code with either): the nodes are free
@@ -43,10 +43,9 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from tensegrity_ros.core import ModuleParams, equilibria
-from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
-
 from node_spring_flow import NodeSpringNeck, released_past_a_branch_point, rest_point
+from tensegrity_ros.core import equilibria, ModuleParams
+from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics

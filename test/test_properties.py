@@ -9,18 +9,18 @@ points whose equilibria are all well-conditioned (|lambda_min| > 1e-6
 """
 import math
 
+from hypothesis import event, given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, event, given, settings, strategies as st
 
-from tensegrity_ros.core import ModuleParams, equilibria, equilibria_batch, gradient
+from tensegrity_ros.core import equilibria, equilibria_batch, gradient, ModuleParams
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics
 
 
-SETTINGS = dict(derandomize=True, deadline=None, database=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+SETTINGS = {'derandomize': True, 'deadline': None, 'database': None,
+            'suppress_health_check': [HealthCheck.too_slow, HealthCheck.filter_too_much]}
 TWO_PI = 2 * math.pi
 WELL_CONDITIONED = 1e-6
 
@@ -101,8 +101,10 @@ def test_mirror_symmetry(p):
         same_set(a, b, 1e-9, transform=lambda t: -t)
         for e in a:
             o = min(b, key=lambda o: torus_distance(-e.theta, o.theta))
-            assert o.energy == np.float64(e.energy) or abs(o.energy - e.energy) <= 1e-9 * (1 + abs(e.energy))
-            assert np.allclose(o.eigenvalues, e.eigenvalues, rtol=1e-7, atol=1e-9 * max(map(abs, e.eigenvalues)))
+            assert (o.energy == np.float64(e.energy)
+                    or abs(o.energy - e.energy) <= 1e-9 * (1 + abs(e.energy)))
+            assert np.allclose(o.eigenvalues, e.eigenvalues, rtol=1e-7,
+                               atol=1e-9 * max(map(abs, e.eigenvalues)))
     # rounding-proof form
     for e in a:
         assert min(torus_distance(-e.theta, o.theta) for o in b) <= 1e-4
@@ -162,7 +164,8 @@ def test_batch_equals_single(points):
         for t, ev in zip(b.theta[i][valid], b.eigenvalues[i][valid]):
             e = min(s, key=lambda e: torus_distance(t, e.theta))
             assert torus_distance(t, e.theta) <= 1e-9
-            assert np.allclose(ev, e.eigenvalues, rtol=1e-7, atol=1e-9 * max(map(abs, e.eigenvalues)))
+            assert np.allclose(ev, e.eigenvalues, rtol=1e-7,
+                               atol=1e-9 * max(map(abs, e.eigenvalues)))
         assert np.array_equal(b.stable[i][valid],
                               [min(s, key=lambda e: torus_distance(t, e.theta)).stable
                                for t in b.theta[i][valid]])

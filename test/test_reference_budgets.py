@@ -5,11 +5,10 @@ Undecided is not a NoRest, which the reference's own decisions catch and act on.
 import numpy as np
 import pytest
 
-from tensegrity_ros.core import ModuleParams
-
 from node_spring_flow import FlowUndecided, NodeSpringNeck
-from reference_paths import (ModuleSystem, NoRest, Undecided, evaluations_spent,
-                             quasi_static_path, work_budget)
+from reference_paths import (evaluations_spent, ModuleSystem, NoRest, quasi_static_path, Undecided,
+                             work_budget)
+from tensegrity_ros.core import ModuleParams
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics

@@ -95,17 +95,17 @@ it two half-branches leave the change point downhill, and both land on the steep
 import math
 import os
 
+from hypothesis import example, given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
 
+from reference_paths import (angle_distance, critical_solve, FIELDS, flow_to_rest, ModuleSystem,
+                             NeckSystem, other_sides, quasi_static_path, settle_reference,
+                             values_of)
 from tensegrity_ros.core import ModuleParams, settle, track_module
 from tensegrity_ros.core.continuation import TrackingError
-from tensegrity_ros.core.stack import Stack, settle_stack, stack_equilibrium_at, track_stack
+from tensegrity_ros.core.stack import settle_stack, Stack, stack_equilibrium_at, track_stack
 from tensegrity_ros.core.supported_range import LOAD_RATIO
-
-from reference_paths import (FIELDS, ModuleSystem, NeckSystem, angle_distance, critical_solve,
-                             flow_to_rest, other_sides, quasi_static_path, settle_reference,
-                             values_of)
 
 #: A reported jump and the reference's must be this close in s.
 LOCATION_TOL = 1e-7
@@ -390,8 +390,6 @@ def test_asymmetries_around_c1(name, base, eps):
 
 
 # -- hypothesis: every reported jump lands on a stable equilibrium, a finite distance away -----
-
-from hypothesis import HealthCheck, example, given, settings, strategies as st  # noqa: E402
 
 #: Fixed-seed profile (derandomized: the same examples in every run).
 PROPERTY = settings(max_examples=25, deadline=None, derandomize=True,
@@ -689,8 +687,8 @@ def test_n3_nearly_symmetric_neck_head_load_folds_where_the_tracker_says():
     steepest descent, which the reference now takes; it used to take the one with the
     lower landing (U = 253.63 J), kept as its alternative.  The reference must land on
     the tracker's state itself, not only on one of its ways out."""
-    start, end = paper_neck(3, 0.6, 0.0, dict(ka=100.0000001)), \
-        paper_neck(3, 0.6, -40.0, dict(ka=100.0000001))
+    start, end = paper_neck(3, 0.6, 0.0, {'ka': 100.0000001}), \
+        paper_neck(3, 0.6, -40.0, {'ka': 100.0000001})
     got, ref = compare_neck(start, end, settle_stack(start, upright(3, 0.6)).theta)
     (mine,), (theirs,) = got.jumps, ref.jumps
     assert mine.kind == theirs.kind == 'fold'
@@ -710,7 +708,7 @@ def near_symmetric_neck(n, ramp, kind, eps):
     """(start, end) stacks: ``kind`` 'ka' (module 0 ka = 100 (1 + eps)), 'L2' (module 0
     L2 = 1 + eps) or 'fx' (a horizontal head-load component, eps times the load)."""
     head = -40.0 if ramp == 'head' else -5.0
-    first = {'ka': dict(ka=100.0 * (1.0 + eps)), 'L2': dict(L2=1.0 + eps), 'fx': None}[kind]
+    first = {'ka': {'ka': 100.0 * (1.0 + eps)}, 'L2': {'L2': 1.0 + eps}, 'fx': None}[kind]
     fx = abs(head) * eps if kind == 'fx' else 0.0
 
     def stack(rho, load):
@@ -728,8 +726,8 @@ def compare_near_symmetric(n, ramp, kind, eps):
     return compare_neck(start, end, settle_stack(start, upright(n, rho)).theta)
 
 
-NEAR_SYMMETRIC_CASES = [(ramp, kind, eps) for ramp in ('head', 'rho') for kind in ('ka', 'L2', 'fx')
-                        for eps in NEAR_SYMMETRIC_EPS]
+NEAR_SYMMETRIC_CASES = [(ramp, kind, eps) for ramp in ('head', 'rho')
+                        for kind in ('ka', 'L2', 'fx') for eps in NEAR_SYMMETRIC_EPS]
 
 
 @pytest.mark.numerics
@@ -742,7 +740,8 @@ def test_near_symmetric_one_module_neck(ramp, kind, eps):
 
 #: N = 2 and 3 paths run by default (each neck reference path takes 40-90 s alone on
 #: this machine); FULL_NECKS=1 in the environment runs the whole grid (see the docstring).
-NEAR_SYMMETRIC_NECKS = [(2, 'head', 'ka', 1e-2), (2, 'head', 'fx', 1e-9), (2, 'head', 'L2', 1e-6)] \
+NEAR_SYMMETRIC_NECKS = [(2, 'head', 'ka', 1e-2), (2, 'head', 'fx', 1e-9),
+                        (2, 'head', 'L2', 1e-6)] \
     + [(2, 'rho', kind, eps) for kind in ('ka', 'L2', 'fx') for eps in NEAR_SYMMETRIC_EPS] \
     + [(3, 'rho', 'ka', 1e-2), (3, 'rho', 'L2', 1e-9), (3, 'rho', 'fx', 1e-4)]
 if os.environ.get('FULL_NECKS') == '1':
@@ -784,8 +783,8 @@ def test_perfect_module_passes_its_flat_pitchfork_like_the_reference(rho_end):
 #: reference's own Hessian turns indefinite between s* - 1e-9 and s*); the tracker lands
 #: at m0 (-pi/2, -pi/2), m1 (2.1631, 0.6347), m2 (-0.8941, -1.8253) (U = 289.32 J), the
 #: reference, past module 0's and module 1's change points (steepest half-branches), on
-#: it or its mirror image (asserted below).  With the lower-landing rule it landed on m0 = m1 = (-1.3316,
-#: -1.3316), m2 (-1.3377, -1.3377) (U = 262.43 J); the path comparison accepted the
+#: it or its mirror image (asserted below).  With the lower-landing rule it landed on m0 = m1 =
+#: (-1.3316, -1.3316), m2 (-1.3377, -1.3377) (U = 262.43 J); the path comparison accepted the
 #: tracker's landing as one of its alternatives, so only the check of the reference's
 #: own landing below tells the two rules apart.
 PERFECT_NECKS = [(2, 'head'), (3, 'head'), (2, 'rho'), (3, 'rho')]
@@ -800,7 +799,8 @@ def test_perfect_neck_against_the_reference(n, ramp):
         start, end = paper_neck(n, 0.6, 0.0), paper_neck(n, 0.6, -40.0)
     else:
         start, end = paper_neck(n, 0.9, -5.0), paper_neck(n, 0.2, -5.0)
-    got, ref = compare_neck(start, end, settle_stack(start, upright(n, start.modules[0].rho)).theta)
+    got, ref = compare_neck(start, end,
+                            settle_stack(start, upright(n, start.modules[0].rho)).theta)
     if (n, ramp) == (3, 'head'):
         assert len(ref.passages) == 1 and [j.kind for j in got.jumps] == ['fold']
     if (n, ramp) == (3, 'rho'):
@@ -822,8 +822,8 @@ def test_perfect_neck_against_the_reference(n, ramp):
                     reason='~2 min of reference each: FULL_NECKS=1 (CI) runs them')
 @pytest.mark.parametrize('ka_error', [0.0, 1e-9])
 def test_ten_module_neck_under_a_head_load_against_the_reference(ka_error):
-    start = paper_neck(10, 0.6, 0.0, dict(ka=100.0 * (1.0 + ka_error)) if ka_error else None)
-    end = paper_neck(10, 0.6, -20.0, dict(ka=100.0 * (1.0 + ka_error)) if ka_error else None)
+    start = paper_neck(10, 0.6, 0.0, {'ka': 100.0 * (1.0 + ka_error)} if ka_error else None)
+    end = paper_neck(10, 0.6, -20.0, {'ka': 100.0 * (1.0 + ka_error)} if ka_error else None)
     got, ref = compare_neck(start, end, settle_stack(start, upright(10, 0.6)).theta)
     assert [j.kind for j in got.jumps] == ['fold']
 
@@ -1117,7 +1117,8 @@ def test_neck_jump_off_a_flat_crossing_takes_the_arm_its_departure_leans_to():
     assert got.status == 'ok', got.message
     (jump,) = got.jumps
     assert abs(jump.s - s_cross) <= LOCATION_TOL and jump.ambiguous, jump.s
-    assert all(abs(j.s - s_cross) <= LOCATION_TOL for j in ref.jumps), describe_reference(ref.jumps)
+    assert all(abs(j.s - s_cross) <= LOCATION_TOL for j in ref.jumps), \
+        describe_reference(ref.jumps)
     s_after = s_cross + 1e-9                         # the reference's bracket end
     rest = flow_to_rest(system, np.ravel(jump.from_theta), s_after)
     assert angle_distance(rest.state, np.ravel(jump.to_theta)) <= LANDING_TOL

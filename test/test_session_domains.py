@@ -3,13 +3,13 @@ base domain (ROS_DOMAIN_ID from the environment) plus the worker's index, in 0..
 Two workers on one domain would see each other's nodes (same node names in the graph,
 cross-talk on relative topics)."""
 import os
+from pathlib import Path
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-from conftest import MAX_DOMAIN, base_domain, worker_domain
+from conftest import base_domain, MAX_DOMAIN, worker_domain
 
 HERE = Path(__file__).resolve().parent
 

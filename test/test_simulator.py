@@ -7,22 +7,24 @@ called directly on the same straight paths: the simulator must add no motion of 
 """
 import math
 
+from hypothesis import assume, given, settings, strategies as st
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings, strategies as st
 
+from tensegrity_ros.core import equilibria, ModuleParams, settle, track_module, TrackingError
+from tensegrity_ros.core.events import combined, Jump, JumpAhead, Passage, TrackingFailure
 import tensegrity_ros.core.mechanisms as mechanisms
-from tensegrity_ros.core import ModuleParams, TrackingError, equilibria, settle, track_module
-from tensegrity_ros.core.events import Jump, JumpAhead, Passage, TrackingFailure, combined
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
-from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
+from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
 from tensegrity_ros.core.start_state import upright_guess
 
 
 def wrapped(a, b):
     """Largest angle difference modulo 2 pi."""
-    d = (np.asarray(a, dtype=float) - np.asarray(b, dtype=float) + math.pi) % (2 * math.pi) - math.pi
+    d = ((np.asarray(a, dtype=float) - np.asarray(b, dtype=float) + math.pi) % (2 * math.pi)
+         - math.pi)
     return float(np.max(np.abs(d)))
+
 
 LOWER = [-1.0, -1.0]                 # fig. 8a: the lower stable branch at rho = 0.5
 S = 1_000_000_000                    # ns per second
@@ -110,7 +112,7 @@ def test_a_command_beyond_the_fold_is_warned_first_then_jumps():
     assert isinstance(warning, JumpAhead) and isinstance(jump, Jump)
     assert warning.end.kind == 'fold' and 0.8 < warning.end.rho < 0.95         # C2
     assert jump.kind == 'fold' and jump.modules[0].rho == pytest.approx(warning.end.rho,
-                                                                         abs=1e-8)
+                                                                        abs=1e-8)
 
 
 def test_speed_limit_moves_at_the_rate_and_reaches_the_target():
@@ -346,11 +348,11 @@ def test_a_neck_load_ending_just_past_its_sideways_buckling_is_taken():
     guess = upright_guess(modules)
     sim = Simulator(modules, guess, **UNBOUNDED)
     load = -6.853824673228113 * (1.0 + 1e-8)
-    outcome = finished(sim, sim.set_parameters({2: dict(f3y=load, f4y=load)}, 0, 'load'))
+    outcome = finished(sim, sim.set_parameters({2: {'f3y': load, 'f4y': load}}, 0, 'load'))
     assert outcome.status == 'ok' and not outcome.of_type(TrackingFailure)
     assert len(outcome.of_type(Passage)) == 1 and not outcome.of_type(Jump)
     assert sim.state.stable and sim.state.certificate and not verified_minimum(sim)
-    outcome = finished(sim, sim.set_parameters({2: dict(f3y=-10.0, f4y=-10.0)}, 0, 'load'))
+    outcome = finished(sim, sim.set_parameters({2: {'f3y': -10.0, 'f4y': -10.0}}, 0, 'load'))
     assert outcome.status == 'ok' and verified_minimum(sim)
     stack = Stack(modules)
     expected = track_stack(stack, stack.with_module(2, f3y=-10.0, f4y=-10.0),
@@ -507,7 +509,7 @@ def test_round_number_command_sequences_on_the_default_module_stay_verified():
             else:
                 f3 = rng.choice(loads)
                 f4 = f3 if pick < 0.85 else rng.choice(loads)
-                out = sim.set_parameters({0: dict(f3y=f3, f4y=f4)}, 0, 'force')
+                out = sim.set_parameters({0: {'f3y': f3, 'f4y': f4}}, 0, 'force')
             status = sim.status(0)
             assert sim.stable and status.level != 'error', status.message
             assert out.status in ('ok', 'failed'), out

@@ -4,9 +4,9 @@ same profile), commands during the transient act on the moving rods, the state c
 no verified equilibrium while the rods move, and bad input changes nothing."""
 import math
 
+from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
 
 from tensegrity_ros.core import ModuleParams, simulate_snap
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
@@ -100,9 +100,9 @@ def test_bad_input_changes_nothing():
 
 
 @pytest.mark.parametrize('bad, text', [
-    (dict(params=FIG8A.with_(m1=0.0)), 'm1'),
-    (dict(limits=ModuleLimits(max_rho_rate=0.0)), 'max_rate'),
-    (dict(damping=0.0), 'damping'),
+    ({'params': FIG8A.with_(m1=0.0)}, 'm1'),
+    ({'limits': ModuleLimits(max_rho_rate=0.0)}, 'max_rate'),
+    ({'damping': 0.0}, 'damping'),
 ])
 def test_a_dynamics_mode_without_masses_speed_or_damping_is_refused(bad, text):
     with pytest.raises(ValueError, match=text):

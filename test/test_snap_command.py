@@ -5,7 +5,7 @@ import json
 import pytest
 
 from tensegrity_ros.cli import main
-from tensegrity_ros.core import ModuleParams, equilibria
+from tensegrity_ros.core import equilibria, ModuleParams
 
 FIG8A = ('--L1', 1, '--L2', 1, '--k', 100, '--F3', 5, '--F4', 5, '--m1', 0.05, '--m2', 0.05)
 LOWER = ('--theta1', -1, '--theta2', -1)

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from tensegrity_ros.core import (BRANCH_POINT, FOLD, ModuleParams, ModulePath, equilibria, settle,
-                                  track_module)
-from tensegrity_ros.core.stack import (Stack, StackJump, StackPassage, StackPath, settle_stack,
-                                       stack_equilibria, stack_equilibrium_at, track_stack)
+from tensegrity_ros.core import (BRANCH_POINT, equilibria, FOLD, ModuleParams, ModulePath, settle,
+                                 track_module)
+from tensegrity_ros.core.stack import (settle_stack, Stack, stack_equilibria, stack_equilibrium_at,
+                                       StackJump, StackPassage, StackPath, track_stack)
 
 G = 9.80665
 
@@ -25,7 +25,8 @@ ONE_MODULE_POINTS = [
     ModuleParams.paper(0.75, F3=-10, F4=-10),
     ModuleParams.paper(0.5, F3=5, F4=5),
     ModuleParams.paper(1.5, L2=1.5, F3=-10, F4=-10),
-    ModuleParams(rho=0.6, L2=1.3, ka=80, kb=120, kc=90, f3x=1, f3y=3, f4x=-2, f4y=-4, m1=0.2, m2=0.3),
+    ModuleParams(rho=0.6, L2=1.3, ka=80, kb=120, kc=90, f3x=1, f3y=3, f4x=-2, f4y=-4,
+                 m1=0.2, m2=0.3),
     ModuleParams(rho=0.9, L1=0.8, L2=1.1, f3x=-3, f3y=2, f4x=1, f4y=6),
 ]
 
@@ -113,8 +114,10 @@ def oracle_minima(stack, starts, seed):
 
 NECKS = [
     Stack((ModuleParams.paper(0.75), ModuleParams.paper(0.7, F3=-3, F4=-2))),
-    Stack((ModuleParams(rho=0.6, L2=1.2, f3x=1.0), ModuleParams(rho=0.65, L1=0.9, f3y=2, f4x=-1, m1=0.1))),
-    Stack((ModuleParams.paper(0.7), ModuleParams.paper(0.6), ModuleParams.paper(0.55, F3=-2, F4=-1))),
+    Stack((ModuleParams(rho=0.6, L2=1.2, f3x=1.0),
+           ModuleParams(rho=0.65, L1=0.9, f3y=2, f4x=-1, m1=0.1))),
+    Stack((ModuleParams.paper(0.7), ModuleParams.paper(0.6),
+           ModuleParams.paper(0.55, F3=-2, F4=-1))),
 ]
 
 
@@ -255,7 +258,8 @@ def test_critical_load_falls_as_the_neck_grows_and_n1_is_the_module_fold():
     assert magnitudes == pytest.approx([31.0115, 18.8595, 6.8538, 3.6666], abs=1e-4)
     # N = 1: the module solver's tracker reports the same fold
     upright = equilibria(ModuleParams.paper(0.6)).stable[-1].theta
-    module = track_module(ModuleParams.paper(0.6), ModuleParams.paper(0.6, F3=-40, F4=-40), upright)
+    module = track_module(ModuleParams.paper(0.6), ModuleParams.paper(0.6, F3=-40, F4=-40),
+                          upright)
     assert module.jumps[0].kind == FOLD
     assert loads[0] == pytest.approx(module.jumps[0].params.f3y, abs=1e-7)
 

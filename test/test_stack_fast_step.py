@@ -2,13 +2,13 @@
 a command that starts from the previous command's kept evaluation gives what a fresh
 evaluation gives, and the s-rates that skip still parameter groups equal the general
 formula (all groups treated as moving) and finite differences."""
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
 
 from tensegrity_ros.core import continuation
 from tensegrity_ros.core.module import ModuleParams
-from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
+from tensegrity_ros.core.stack import settle_stack, Stack, StackPath, track_stack
 from tensegrity_ros.core.stack_fast_step import _KEPT, whole_command_step
 from test_stack_formulations import random_stack, wrapped
 
@@ -43,10 +43,10 @@ def test_a_chain_of_commands_from_kept_evaluations_equals_fresh_ones(n):
     for k in range(12):
         i = int(rng.integers(n))
         m = stack.modules[i]
-        change = [dict(rho=m.rho + rng.uniform(-2e-3, 2e-3)),
-                  dict(f3y=m.f3y + rng.uniform(-0.05, 0.05)),
-                  dict(ka=m.ka * (1 + rng.uniform(-1e-3, 1e-3))),
-                  dict(L2=m.L2 * (1 + rng.uniform(-1e-3, 1e-3)))][k % 4]
+        change = [{'rho': m.rho + rng.uniform(-2e-3, 2e-3)},
+                  {'f3y': m.f3y + rng.uniform(-0.05, 0.05)},
+                  {'ka': m.ka * (1 + rng.uniform(-1e-3, 1e-3))},
+                  {'L2': m.L2 * (1 + rng.uniform(-1e-3, 1e-3))}][k % 4]
         end = stack.with_module(i, **change)
         kept_used += _KEPT in state.__dict__
         ours = track_stack(stack, end, state)
@@ -65,8 +65,8 @@ def moving_groups(rng, n, group):
         return start, random_stack(rng, n)
     i = int(rng.integers(n))
     m = start.modules[i]
-    change = {'rho': dict(rho=m.rho + 0.01), 'loads': dict(f4x=m.f4x + 0.3, m1=m.m1 + 0.05),
-              'springs': dict(kb=m.kb + 5.0), 'rods': dict(L1=m.L1 + 0.02)}[group]
+    change = {'rho': {'rho': m.rho + 0.01}, 'loads': {'f4x': m.f4x + 0.3, 'm1': m.m1 + 0.05},
+              'springs': {'kb': m.kb + 5.0}, 'rods': {'L1': m.L1 + 0.02}}[group]
     return start, start.with_module(i, **change)
 
 
@@ -139,9 +139,9 @@ def test_the_kept_evaluation_is_the_fresh_one_at_the_next_start(n):
     stack = random_stack(rng, n)
     state = settle_stack(stack, np.full((n, 2), 0.75))
     m = stack.modules[0]
-    for first_change, kept in ((dict(rho=m.rho + 1e-3), True),
-                               (dict(f3y=m.f3y + 0.01, m2=m.m2 + 0.01), True),
-                               (dict(L1=m.L1 * 1.001), False)):
+    for first_change, kept in (({'rho': m.rho + 1e-3}, True),
+                               ({'f3y': m.f3y + 0.01, 'm2': m.m2 + 0.01}, True),
+                               ({'L1': m.L1 * 1.001}, False)):
         first = stack.with_module(0, **first_change)
         record = track_stack(stack, first, state).final
         assert _KEPT in record.__dict__

@@ -2,13 +2,13 @@
 (test/stack_cartesian_reference.py, run by the same generic tracker): same equilibria,
 eigenvalues, energies, actuator forces and jumps to 1e-10, on seeded random small
 commands and on jump-crossing paths; analytic derivatives against finite differences."""
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
 
 from stack_cartesian_reference import CartesianStackPath
-from tensegrity_ros.core import ModuleParams, continuation
-from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
+from tensegrity_ros.core import continuation, ModuleParams
+from tensegrity_ros.core.stack import settle_stack, Stack, StackPath, track_stack
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics
@@ -67,7 +67,8 @@ def test_seeded_small_commands_agree_with_node_coordinates(n):
 
 
 def neck(n, load, rho=0.6):
-    return Stack(tuple([ModuleParams.paper(rho)] * (n - 1) + [ModuleParams.paper(rho, F3=load, F4=load)]))
+    return Stack(tuple([ModuleParams.paper(rho)] * (n - 1)
+                       + [ModuleParams.paper(rho, F3=load, F4=load)]))
 
 
 JUMP_PATHS = [
@@ -104,7 +105,9 @@ def test_jumps_agree_with_node_coordinates(start, end, theta):
     # passed continuously onto a side chosen by a rule in each formulation's coordinates
     mirrored = bool(ours.passages) and wrapped(
         ours.jumps[0].from_theta, path.angles(ref.events[0].state, ref.events[0].s)) > 1e-6
-    orient = lambda theta: np.asarray(theta)[:, ::-1] if mirrored else np.asarray(theta)
+
+    def orient(theta):
+        return np.asarray(theta)[:, ::-1] if mirrored else np.asarray(theta)
     for jump, mine, event in zip(ours.jumps, raw.events, ref.events):
         assert jump.s == pytest.approx(event.s, abs=1e-10)
         assert wrapped(jump.from_theta, orient(path.angles(event.state, event.s))) < \

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from stack_cartesian_reference import CartesianStackPath
-from tensegrity_ros.core import BRANCH_POINT, FOLD, ModuleParams, equilibria
-from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
+from tensegrity_ros.core import BRANCH_POINT, equilibria, FOLD, ModuleParams
+from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics
@@ -50,7 +50,7 @@ def test_n3_asymmetric_neck_buckles_without_an_event(ka):
     # the sideways buckling is supercritical: passed continuously, not a jump
     assert [j.kind for j in perfect.jumps] == [FOLD] and len(perfect.passages) == 1
     assert perfect.passages[0].stack.modules[-1].f3y == pytest.approx(-6.8538247, abs=1e-6)
-    imperfect = head_load_track(3, dict(ka=ka))
+    imperfect = head_load_track(3, {'ka': ka})
     assert [j.kind for j in imperfect.jumps] == [FOLD] and imperfect.passages == ()
     assert loads(imperfect)[0] == pytest.approx(loads(perfect)[0], abs=1e-4)
 
@@ -64,8 +64,8 @@ def test_n3_perfect_neck_buckles_onto_the_imperfect_necks_minimum():
     assert perfect.jumps == () and len(perfect.passages) == 1
     theta = perfect.final.theta
     assert np.max(np.abs(theta[:, 0] - theta[:, 1])) > 0.1              # buckled sideways
-    matching = head_load_track(3, dict(ka=99.9999999), load=-10.0)
-    mirrored = head_load_track(3, dict(ka=100.0000001), load=-10.0)
+    matching = head_load_track(3, {'ka': 99.9999999}, load=-10.0)
+    mirrored = head_load_track(3, {'ka': 100.0000001}, load=-10.0)
     assert matching.jumps == mirrored.jumps == () and matching.passages == ()
     np.testing.assert_allclose(theta, matching.final.theta, atol=1e-8)
     np.testing.assert_allclose(theta, mirrored.final.theta[:, ::-1], atol=1e-8)
@@ -76,7 +76,7 @@ def test_n3_perfect_neck_buckles_onto_the_imperfect_necks_minimum():
     assert eigenvalues[0] > 1e-3 * eigenvalues[-1]
 
 
-@pytest.mark.parametrize('first', [dict(ka=100.001), dict(ka=99.999), dict(f3x=1e-4)])
+@pytest.mark.parametrize('first', [{'ka': 100.001}, {'ka': 99.999}, {'f3x': 1e-4}])
 def test_n2_asymmetric_neck_folds_next_to_the_snap(first):
     perfect = head_load_track(2)
     assert [j.kind for j in perfect.jumps] == [BRANCH_POINT]

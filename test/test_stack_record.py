@@ -3,8 +3,8 @@ evaluation) against forward kinematics of the record's own local angles, written
 import cmath
 import math
 
-import numpy as np
 from hypothesis import given, settings, strategies as st
+import numpy as np
 
 from tensegrity_ros.core.module import ModuleParams
 from tensegrity_ros.core.simulator import Simulator
@@ -61,14 +61,15 @@ def test_scales_carried_along_actuator_commands_equal_fresh_ones():
         np.testing.assert_array_equal(carried.state_weights, fresh.state_weights)
         start = end
     fresh = StackPath(Stack(start.modules), Stack(start.modules))  # from the changed design
-    assert StackPath(start, start).l_ref == fresh.l_ref != StackPath(Stack(tuple(NECK)), start).l_ref
+    assert (StackPath(start, start).l_ref == fresh.l_ref
+            != StackPath(Stack(tuple(NECK)), start).l_ref)
 
 
 def test_lazy_angles_and_forces_are_those_of_a_fresh_evaluation():
     """A record's angles, actuator forces and nodes, made on first read from the tracker's
     kept evaluation, are those of a fresh path evaluated at the record's own state and
     parameters (read after later commands, so a reused evaluation would show)."""
-    from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
+    from tensegrity_ros.core.stack import settle_stack, Stack, StackPath, track_stack
     stack = Stack(tuple(NECK))
     state = settle_stack(stack, NECK_THETA)
     records = []
@@ -94,7 +95,7 @@ def test_a_record_keeps_rod_angles_within_a_turn_whatever_state_it_is_made_from(
     loosens every later Newton stop (relative to 1 + |y|).  A record made from such a
     state, or tracked from it, holds the same rods with angles within [-pi, pi], and
     angles within 3 pi are kept bit for bit."""
-    from tensegrity_ros.core.stack import Stack, settle_stack, stack_equilibrium_at, track_stack
+    from tensegrity_ros.core.stack import settle_stack, Stack, stack_equilibrium_at, track_stack
     stack = Stack(tuple(NECK))
     settled = settle_stack(stack, NECK_THETA)
     y = settled.state
@@ -123,7 +124,7 @@ def test_a_one_step_track_is_the_dataclass_one():
     """The small command's result is made by filling the instance dict (issue 14): it must
     equal the frozen dataclass made through its own __init__, field for field, so that a
     field added to StackTrack cannot be left out of it silently."""
-    from tensegrity_ros.core.stack import Stack, StackTrack, _one_step_track, track_stack
+    from tensegrity_ros.core.stack import _one_step_track, Stack, StackTrack, track_stack
     start = Stack(tuple(NECK))
     end = start.with_module(1, rho=0.086)
     track = track_stack(start, end, np.array(NECK_THETA))

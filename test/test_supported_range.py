@@ -9,10 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from tensegrity_ros.core import InvalidParameterError, ModuleParams, equilibria, settle, track_module
-from tensegrity_ros.core.supported_range import (LENGTH_RATIO, LOAD_RATIO, STIFFNESS_RATIO,
-                                                 OutOfRangeError, check_supported,
-                                                 out_of_range_reason)
+from tensegrity_ros.core import (equilibria, InvalidParameterError, ModuleParams, settle,
+                                 track_module)
+from tensegrity_ros.core.supported_range import (check_supported, LENGTH_RATIO, LOAD_RATIO,
+                                                 out_of_range_reason, OutOfRangeError,
+                                                 STIFFNESS_RATIO)
 
 
 def scaled(p, length, stiffness):
@@ -23,7 +24,8 @@ def scaled(p, length, stiffness):
 
 
 def wrapped(a, b):
-    return float(np.max(np.abs((np.asarray(a) - np.asarray(b) + math.pi) % (2 * math.pi) - math.pi)))
+    d = (np.asarray(a) - np.asarray(b) + math.pi) % (2 * math.pi) - math.pi
+    return float(np.max(np.abs(d)))
 
 
 AT_THE_LIMITS = {
@@ -31,8 +33,10 @@ AT_THE_LIMITS = {
     'L2/L1 min': ModuleParams(rho=0.75, L2=1 / LENGTH_RATIO, f3y=0.5),
     'rho/L1 min': ModuleParams(rho=1 / LENGTH_RATIO, f3y=0.5),
     'rho/L1 max': ModuleParams(rho=LENGTH_RATIO / 1.3, f3y=0.5),
-    'kb/ka max, kc/ka min': ModuleParams(rho=0.75, kb=100 * STIFFNESS_RATIO, kc=100 / STIFFNESS_RATIO),
-    'kb/ka min, kc/ka max': ModuleParams(rho=0.75, kb=100 / STIFFNESS_RATIO, kc=100 * STIFFNESS_RATIO),
+    'kb/ka max, kc/ka min': ModuleParams(rho=0.75, kb=100 * STIFFNESS_RATIO,
+                                         kc=100 / STIFFNESS_RATIO),
+    'kb/ka min, kc/ka max': ModuleParams(rho=0.75, kb=100 / STIFFNESS_RATIO,
+                                         kc=100 * STIFFNESS_RATIO),
     'load max': ModuleParams(rho=0.75, f3x=100 * LOAD_RATIO, f4y=-100 * LOAD_RATIO),
     'loads max, mixed': ModuleParams(rho=0.75, f3y=-100 * LOAD_RATIO, f4y=100 * LOAD_RATIO,
                                      f3x=-100 * LOAD_RATIO),
@@ -63,7 +67,8 @@ def test_jumps_are_scale_invariant(length, stiffness):
     unit_b = unit_a.with_(rho=0.1)
     theta = settle(unit_a, [-1.0, -1.0]).theta
     reference = track_module(unit_a, unit_b, theta)
-    result = track_module(scaled(unit_a, length, stiffness), scaled(unit_b, length, stiffness), theta)
+    result = track_module(scaled(unit_a, length, stiffness), scaled(unit_b, length, stiffness),
+                          theta)
     assert [j.kind for j in result.jumps] == [j.kind for j in reference.jumps] == ['fold']
     for a, b in zip(result.jumps, reference.jumps):
         assert a.s == pytest.approx(b.s, abs=1e-9)
@@ -73,12 +78,12 @@ def test_jumps_are_scale_invariant(length, stiffness):
 
 
 @pytest.mark.parametrize('change, group', [
-    (dict(f3x=1e10), 'load/(k L)'),          # issue 10 item 2: F/(kL) = 1e8 on the default module
-    (dict(L1=1e49), 'L2/L1'),
-    (dict(ka=1e49), 'kb/ka'),
-    (dict(ka=1e-50, kb=1e50), 'kb/ka'),
-    (dict(rho=1e4), 'rho/L1'),
-    (dict(kc=1e6), 'kc/ka'),
+    ({'f3x': 1e10}, 'load/(k L)'),          # issue 10 item 2: F/(kL) = 1e8 on the default module
+    ({'L1': 1e49}, 'L2/L1'),
+    ({'ka': 1e49}, 'kb/ka'),
+    ({'ka': 1e-50, 'kb': 1e50}, 'kb/ka'),
+    ({'rho': 1e4}, 'rho/L1'),
+    ({'kc': 1e6}, 'kc/ka'),
 ])
 def test_outside_the_range_is_refused_with_the_group_named(change, group):
     params = ModuleParams(rho=0.75).with_(**change)

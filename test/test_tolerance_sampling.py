@@ -9,8 +9,8 @@ from scipy import stats
 
 from tensegrity_ros.core.tolerance_sampling import (parse_spread, sample_waypoints, Tolerance,
                                                     unit_samples)
-from tensegrity_ros.core.tolerance_statistics import (noise_level, proportion_interval,
-                                                      quantiles, rank_correlations)
+from tensegrity_ros.core.tolerance_statistics import (noise_level, proportion_interval, quantiles,
+                                                      rank_correlations)
 
 
 @pytest.mark.parametrize('text, expected', [

@@ -19,9 +19,9 @@ points is bounded too, by GRANULARITY (see there).
 import numpy as np
 import pytest
 
-from tensegrity_ros.core import ModuleParams, TrackerSettings, equilibria, settle
-from tensegrity_ros.core import bounded_work, continuation
-from tensegrity_ros.core.stack import Stack, StackPath, settle_stack, track_stack
+from tensegrity_ros.core import (bounded_work, continuation, equilibria, ModuleParams, settle,
+                                 TrackerSettings)
+from tensegrity_ros.core.stack import settle_stack, Stack, StackPath, track_stack
 from tensegrity_ros.core.start_state import upright_guess
 from tensegrity_ros.core.tracking import ModulePath
 

@@ -1,12 +1,15 @@
 """Tracker: fig. 8 of the paper end to end, exact event locations, hysteresis, generic problems."""
 import math
 
+from hypothesis import given, settings as hyp_settings, strategies as st
 import numpy as np
 import pytest
 from scipy.optimize import brentq, fsolve
 
-from tensegrity_ros.core import (BRANCH_POINT, FOLD, ModuleParams, TrackingError, equilibria,
-                                 settle, track, track_module)
+from tensegrity_ros.core import (BRANCH_POINT, equilibria, FOLD, ModuleParams, settle, track,
+                                 track_module, TrackingError)
+from tensegrity_ros.core.continuation import positive_definite, TrackerSettings
+from tensegrity_ros.core.stack import StackEquilibrium
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics
@@ -182,7 +185,8 @@ class Cusp:
         return np.concatenate([[2.0], np.zeros(self.size - 1)])
 
     def energy(self, y, s):
-        return y[0] ** 4 / 4 - y[0] ** 2 / 2 + (2 * s - 1) * y[0] + 0.5 * np.sum(self.c * y[1:] ** 2)
+        return (y[0] ** 4 / 4 - y[0] ** 2 / 2 + (2 * s - 1) * y[0]
+                + 0.5 * np.sum(self.c * y[1:] ** 2))
 
     def energy_s(self, y, s):
         return 2.0 * y[0]
@@ -260,15 +264,11 @@ def test_a_landing_that_finds_no_minimum_is_given_up(c):
 
 def test_tracker_refuses_an_unstable_start():
     with pytest.raises(TrackingError):
-        track(Cusp(2), np.array([0.0, 0.0]))          # y0 = 0 is a maximum at s = 0.5 ... and not an equilibrium at s = 0
+        # y0 = 0 is a maximum at s = 0.5 ... and not an equilibrium at s = 0
+        track(Cusp(2), np.array([0.0, 0.0]))
 
 
 # -- the tracker's definiteness and a tracked neck state's "stable" agree (issue 10) ------
-
-from hypothesis import given, settings as hyp_settings, strategies as st  # noqa: E402
-
-from tensegrity_ros.core.continuation import TrackerSettings, positive_definite  # noqa: E402
-from tensegrity_ros.core.stack import StackEquilibrium  # noqa: E402
 
 
 @hyp_settings(max_examples=300, deadline=None, derandomize=True)

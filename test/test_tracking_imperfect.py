@@ -6,11 +6,11 @@ extended systems in core/analysis.py).
 """
 import math
 
+from hypothesis import assume, given, settings, strategies as st
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings, strategies as st
 
-from tensegrity_ros.core import BRANCH_POINT, FOLD, ModuleParams, equilibria, settle, track_module
+from tensegrity_ros.core import equilibria, FOLD, ModuleParams, settle, track_module
 from tensegrity_ros.core.analysis import operation_range
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
@@ -21,21 +21,22 @@ P = ModuleParams.paper
 
 
 def wrapped(a, b):
-    return float(np.max(np.abs((np.asarray(a) - np.asarray(b) + math.pi) % (2 * math.pi) - math.pi)))
+    d = (np.asarray(a) - np.asarray(b) + math.pi) % (2 * math.pi) - math.pi
+    return float(np.max(np.abs(d)))
 
 
 # Each asymmetry turns the fig. 8a branch point C1 into a fold; the branch turns sharply
 # before it and stays stable (issue 10 items 1 and 3: 1 to 3 false folds each, the real one
 # placed up to 3.3e-6 early).
 IMPERFECT = {
-    'F3 5.001': dict(F3=5.001),
-    'F3 5.01': dict(F3=5.01),
-    'F3 5.000001': dict(F3=5.000001),
-    'kb 100.1': dict(kb=100.1),
-    'ka 100.01': dict(ka=100.01),
-    'ka 100 (1 + 1e-9)': dict(ka=100 * (1 + 1e-9)),
-    'f3x 1e-6': dict(f3x=1e-6),
-    'L2 1 + 1e-7': dict(L2=1 + 1e-7),
+    'F3 5.001': {'F3': 5.001},
+    'F3 5.01': {'F3': 5.01},
+    'F3 5.000001': {'F3': 5.000001},
+    'kb 100.1': {'kb': 100.1},
+    'ka 100.01': {'ka': 100.01},
+    'ka 100 (1 + 1e-9)': {'ka': 100 * (1 + 1e-9)},
+    'f3x 1e-6': {'f3x': 1e-6},
+    'L2 1 + 1e-7': {'L2': 1 + 1e-7},
 }
 
 
@@ -114,15 +115,16 @@ def test_settle_on_a_saddle_lands_on_the_lower_minimum(params):
 def test_every_jump_lands_on_another_stable_equilibrium(which, exponent, sign, target, back):
     """Near C1 with an asymmetry of 1e-2 .. 1e-9: each reported jump lands on a stable
     equilibrium of the exact solver, a finite distance from where it left."""
-    change = {'F3': dict(F3=5 + sign * 10.0 ** -exponent),
-              'ka': dict(ka=100 * (1 + sign * 10.0 ** -exponent)),
-              'f3x': dict(f3x=sign * 10.0 ** -exponent),
-              'L2': dict(L2=1 + sign * 10.0 ** -exponent)}[which]
+    change = {'F3': {'F3': 5 + sign * 10.0 ** -exponent},
+              'ka': {'ka': 100 * (1 + sign * 10.0 ** -exponent)},
+              'f3x': {'f3x': sign * 10.0 ** -exponent},
+              'L2': {'L2': 1 + sign * 10.0 ** -exponent}}[which]
     start = settle(imperfect(0.5, change), [-1.0, -1.0])
     there = track_module(imperfect(0.5, change), imperfect(target, change), start.theta)
     runs = [there]
     if back:
-        runs.append(track_module(imperfect(target, change), imperfect(0.5, change), there.final.theta))
+        runs.append(track_module(imperfect(target, change), imperfect(0.5, change),
+                                 there.final.theta))
     for result in runs:
         assert result.status == 'ok', result.message
         for jump in result.jumps:
@@ -169,7 +171,8 @@ def test_tracker_and_operation_range_agree_on_the_branch_ends():
 @given(rho=st.tuples(st.floats(0.15, 1.6), st.floats(0.15, 1.6)),
        f3=st.tuples(st.floats(-10, 10), st.floats(-10, 10)),
        f4=st.tuples(st.floats(-10, 10), st.floats(-10, 10)),
-       fx=st.floats(-3, 3), L2=st.floats(0.6, 1.5), guess=st.tuples(st.floats(-3, 3), st.floats(-3, 3)))
+       fx=st.floats(-3, 3), L2=st.floats(0.6, 1.5),
+       guess=st.tuples(st.floats(-3, 3), st.floats(-3, 3)))
 def test_random_paths_jump_only_onto_other_stable_equilibria(rho, f3, f4, fx, L2, guess):
     """Random modules, loads (vertical and horizontal) and paths: the command ends on a
     stable equilibrium of the exact solver, and every jump lands on one a finite distance
@@ -187,6 +190,7 @@ def test_random_paths_jump_only_onto_other_stable_equilibria(rho, f3, f4, fx, L2
     for jump in result.jumps:
         assert wrapped(jump.to_theta, jump.from_theta) > 1e-3
         # just past the event (at it, a pitchfork's new minimum is still degenerate)
-        past = ModuleParams.from_vector(a.vector() + min(jump.s + 1e-3, 1.0) * (b.vector() - a.vector()))
+        past = ModuleParams.from_vector(a.vector()
+                                        + min(jump.s + 1e-3, 1.0) * (b.vector() - a.vector()))
         stable = [e.theta for e in equilibria(past).stable]
         assert min(wrapped(jump.to_theta, t) for t in stable) < 5e-2

@@ -1,13 +1,12 @@
 """ROS-free core: the model, the exact solver, stability and the tracker (numpy/scipy only)."""
-from .module import (ModuleParams, InvalidParameterError, PARAMETER_NAMES, STANDARD_GRAVITY,
-                     energy, gradient, hessian, actuator_force, node_positions)
-from .equilibria import (Equilibrium, EquilibriumSet, EquilibriumBatch, equilibria,
-                         equilibria_batch, classify)
-from .continuation import (PathProblem, TrackerSettings, Track, Event, TrackingError, track,
-                           FOLD, BRANCH_POINT)
-from .tracking import (ModuleJump, ModuleTrack, ModulePath, track_module, settle,
-                       equilibrium_at)
-from .dynamics import RhoRamp, Snap, SnapHistory, simulate_snap
+from .continuation import (BRANCH_POINT, Event, FOLD, PathProblem, Track, track, TrackerSettings,
+                           TrackingError)
+from .dynamics import RhoRamp, simulate_snap, Snap, SnapHistory
+from .equilibria import (classify, equilibria, equilibria_batch, Equilibrium, EquilibriumBatch,
+                         EquilibriumSet)
+from .module import (actuator_force, energy, gradient, hessian, InvalidParameterError,
+                     ModuleParams, node_positions, PARAMETER_NAMES, STANDARD_GRAVITY)
+from .tracking import equilibrium_at, ModuleJump, ModulePath, ModuleTrack, settle, track_module
 
 __all__ = [
     'ModuleParams', 'InvalidParameterError', 'PARAMETER_NAMES', 'STANDARD_GRAVITY',

@@ -65,8 +65,8 @@ vertical forces); all other parameters come from ``base``.
 
 from .bifurcation_model import AXES, BRANCH_POINT, FOLD, LIMIT
 from .degenerate_curves import Curve, degenerate_curves
-from .operation_range import OperationRange, RangeEnd, operation_range
-from .two_stable_limit import TwoStableLimit, two_stable_limit
+from .operation_range import operation_range, OperationRange, RangeEnd
+from .two_stable_limit import two_stable_limit, TwoStableLimit
 
 __all__ = [
     'Curve', 'degenerate_curves', 'RangeEnd', 'OperationRange', 'operation_range',

@@ -16,10 +16,10 @@ import numpy as np
 from . import module as _module
 from .classification import DEGENERACY_TOL, hessian_eigenvalues
 from .module import InvalidParameterError, STANDARD_GRAVITY
-from .polynomial_solver import (CANDIDATE_TOL, CONTINUUM_TOL, CONVERGED_TOL, CROWDED_RADIUS,
-                                IDENTICAL_TOL, NEWTON_MAX_ITER, SECOND_ROUTE_SEPARATION,
-                                UNIT_CIRCLE_TOL, _horizontal_cosine, _polynomial,
-                                _reduced_coefficients, _scale, _solve_scalar, _wrap)
+from .polynomial_solver import (_horizontal_cosine, _polynomial, _reduced_coefficients, _scale,
+                                _solve_scalar, _wrap, CANDIDATE_TOL, CONTINUUM_TOL, CONVERGED_TOL,
+                                CROWDED_RADIUS, IDENTICAL_TOL, NEWTON_MAX_ITER,
+                                SECOND_ROUTE_SEPARATION, UNIT_CIRCLE_TOL)
 
 
 @dataclass(frozen=True)
@@ -413,7 +413,7 @@ def _newton(t1, t2, a1, b1, a2, b2, kcL1, kcL2, scale):
         u1, u2 = u1[going] - d1[going], u2[going] - d2[going]
         t1[active], t2[active] = u1, u2
         a1, b1, a2, b2, kcL1, kcL2, scale = (c[going] for c in (a1, b1, a2, b2, kcL1, kcL2,
-                                                                 scale))
+                                                                scale))
     return t1, t2, residual
 
 

@@ -7,13 +7,13 @@ one parameter point.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
 from .module import ModuleParams
-from .tolerances import DEGENERACY_TOL      # (re-exported: equilibria, batch_solver)
+from .tolerances import DEGENERACY_TOL  # (re-exported: equilibria, batch_solver)
 from .tolerances import verified_minimum
 
 KIND_MINIMUM = 'minimum'

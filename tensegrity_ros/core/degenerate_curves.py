@@ -10,22 +10,23 @@ stable count changes across the curve there) or only a saddle/maximum.  See
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from scipy import linalg as sla
 from scipy.optimize import root
 
 from .batch_solver import equilibria_batch
-from .bifurcation_model import (BRANCH_POINT, FOLD, MIRROR, STABLE_BOUNDARY_TOL, SWAP,
-                                SWAP_MIRROR, _FLATS, _Family, _System, _axis_label,
-                                _critical_mode, _gh, _newton, _wrap)
-from .module import ModuleParams, InvalidParameterError
+from .bifurcation_model import (_axis_label, _critical_mode, _Family, _FLATS, _gh, _newton,
+                                _System, _wrap, BRANCH_POINT, FOLD, MIRROR, STABLE_BOUNDARY_TOL,
+                                SWAP, SWAP_MIRROR)
+from .module import InvalidParameterError, ModuleParams
 from .polynomial_solver import equilibria
 
 # ---------------------------------------------------------------------------
 # Pseudo-arclength continuation of a curve F(z) = 0, F: R^n -> R^(n-1)
+
 
 def _tangent(J, previous=None):
     """Unit null vector of the (n-1) x n Jacobian, oriented along ``previous``."""

@@ -33,10 +33,10 @@ tracked from the rest state is also the quasi-static prediction when the rods co
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 import functools
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -46,10 +46,10 @@ from .events import Outcome
 from .mechanisms import head_of, stack_module_nodes
 from .moving_module import MovingModule
 from .moving_neck import MovingNeck
-from .path_ahead import PathAhead, on_its_own_thread
-from .simulator import (DEFAULT_TIME_BUDGET, DEFAULT_WORK_LIMIT, SOLVER_ERRORS, Simulator)
-from .tolerances import DEFINITENESS_TOL
+from .path_ahead import on_its_own_thread, PathAhead
+from .simulator import DEFAULT_TIME_BUDGET, DEFAULT_WORK_LIMIT, Simulator, SOLVER_ERRORS
 from .stack import Stack
+from .tolerances import DEFINITENESS_TOL
 from .transient import SAME_LANDING, wrap
 
 #: Pivot damping (N m s/rad) when none is given.

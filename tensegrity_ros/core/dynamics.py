@@ -19,18 +19,17 @@ output); nothing here is a hand-written integrator.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 from scipy.integrate import OdeSolution
 
-from . import module as _m
-from . import transient
+from . import module as _m, transient
 from .module import InvalidParameterError, ModuleParams
 from .tracking import ModulePath, ModuleTrack, settle, track_module
-from .transient import (MAX_HOLD, NEAR, ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, SLOW, Rest,
-                        RhoRamp, SnapHistory, SolverSettings, imperfection_torque,
+from .transient import (imperfection_torque, MAX_HOLD, NEAR, ONSET_SPEED, Rest, RhoRamp,
+                        SAME_LANDING, SETTLE_TOLERANCE, SLOW, SnapHistory, SolverSettings,
                         wrap as _wrap)
 
 

@@ -5,12 +5,12 @@ polynomial, polishing, degenerate cases), :mod:`.batch_solver` (the vectorised f
 for maps) and :mod:`.classification` (Morse type, the records).  This module gathers
 their public names under the path tools and tests have always imported.
 """
-from .batch_solver import BATCH_BLOCK, EquilibriumBatch, equilibria_batch
-from .classification import (DEGENERACY_TOL, KIND_DEGENERATE, KIND_MAXIMUM, KIND_MINIMUM,
-                             KIND_SADDLE, Equilibrium, EquilibriumSet, classify,
-                             hessian_eigenvalues)
-# record builders other core modules imported from here before the split
-from .classification import _build, _eigenvalues_2x2  # noqa: F401
+from .batch_solver import BATCH_BLOCK, equilibria_batch, EquilibriumBatch
+# _build, _eigenvalues_2x2 (the noqa): record builders other core modules imported from
+# here before the split
+from .classification import (_build, _eigenvalues_2x2, classify, DEGENERACY_TOL,  # noqa: F401
+                             Equilibrium, EquilibriumSet, hessian_eigenvalues, KIND_DEGENERATE,
+                             KIND_MAXIMUM, KIND_MINIMUM, KIND_SADDLE)
 from .polynomial_solver import equilibria
 
 __all__ = ['BATCH_BLOCK', 'EquilibriumBatch', 'equilibria_batch', 'DEGENERACY_TOL',

@@ -189,9 +189,9 @@ def ways_out(path, y, s):
     [(descent rate, state out along it)], or None if ``y`` is at no crossing.
 
     A half-branch is left where the rigid flow at its state takes the module's own angles
-    away from the crossing (:func:`_moves_away`).  Its descent rate is the energy drop per unit length from the
-    crossing, the length in the node metric of the tracker's own flow (Cartesian node
-    displacements): the released mechanism leaves along the steepest."""
+    away from the crossing (:func:`_moves_away`).  Its descent rate is the energy drop per unit
+    length from the crossing, the length in the node metric of the tracker's own flow (Cartesian
+    node displacements): the released mechanism leaves along the steepest."""
     found = crossing_at(path, y, s)
     if found is None:
         return None

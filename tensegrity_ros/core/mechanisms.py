@@ -8,16 +8,16 @@ module the same view of the verified state, so the simulator above has one code 
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
-from .operation_range import operation_range
-from .polynomial_solver import equilibria
 from .events import BranchEnd, Jump
 from .module import node_positions
-from .stack import Stack, settle_stack, track_stack
+from .operation_range import operation_range
+from .polynomial_solver import equilibria
+from .stack import settle_stack, Stack, track_stack
 from .tracking import settle, track_module
 
 

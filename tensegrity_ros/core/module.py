@@ -10,8 +10,8 @@ at A4, which is exact for uniform rods pinned at their other end.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields, replace
+import math
 
 import numpy as np
 

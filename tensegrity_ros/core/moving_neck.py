@@ -15,11 +15,11 @@ from __future__ import annotations
 import numpy as np
 
 from .live_motion import LiveMotion
-from .moving_module import checked_rate
 from .module import InvalidParameterError
-from .neck_dynamics import NeckEquations, damping_vector
+from .moving_module import checked_rate
+from .neck_dynamics import damping_vector, NeckEquations
 from .neck_kernel import warm_up
-from .stack import Stack, StackPath, settle_stack
+from .stack import settle_stack, Stack, StackPath
 from .transient import RhoRamp, SolverSettings
 
 

@@ -18,20 +18,19 @@ module's x axis, t2 of A2A4 from -x), wrapped to [-pi, pi).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 from scipy.integrate import OdeSolution
 from scipy.linalg import eigh, null_space
 from scipy.linalg.lapack import dgesv as _dgesv
 
-from . import neck_kernel as _kernel
-from . import transient
+from . import neck_kernel as _kernel, transient
 from .module import InvalidParameterError
-from .stack import Stack, StackTrack, settle_stack, track_stack
-from .transient import (NEAR, ONSET_SPEED, SAME_LANDING, SETTLE_TOLERANCE, SLOW, Rest, RhoRamp,
-                        SnapHistory, SolverSettings, imperfection_torque, wrap)
+from .stack import settle_stack, Stack, StackTrack, track_stack
+from .transient import (imperfection_torque, NEAR, ONSET_SPEED, Rest, RhoRamp, SAME_LANDING,
+                        SETTLE_TOLERANCE, SLOW, SnapHistory, SolverSettings, wrap)
 
 #: Baumgarte stabilisation rate (1/s) of the length constraints.
 BAUMGARTE = 20.0

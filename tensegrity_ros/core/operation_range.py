@@ -8,19 +8,19 @@ a regular extended system to ~1e-12.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
-from .bifurcation_model import (BOUND_TOL, BRANCH_POINT, FOLD, LIMIT, MIRROR, SWAP, SWAP_MIRROR,
-                                _FLATS, _critical_mode, _gh, _raw, _scale, _symmetries, _wrap)
+from .bifurcation_model import (_critical_mode, _FLATS, _gh, _raw, _scale, _symmetries, _wrap,
+                                BOUND_TOL, BRANCH_POINT, FOLD, LIMIT, MIRROR, SWAP, SWAP_MIRROR)
 from .classification import DEGENERACY_TOL, hessian_eigenvalues
 from .module import ModuleParams
 from .polynomial_solver import equilibria
 
-# ---------------------------------------------------------------------------
-# Operation range: continuation of one stable branch in rho
+# -- Operation range: continuation of one stable branch in rho ---------------
+
 
 @dataclass(frozen=True)
 class RangeEnd:

@@ -49,7 +49,7 @@ import math
 import numpy as np
 from scipy.linalg.lapack import zgeev as _zgeev
 
-from .classification import EquilibriumSet, _build
+from .classification import _build, EquilibriumSet
 from .module import ModuleParams
 
 #: A root z of the polynomial is a real angle candidate if | ln|z| | is below this.
@@ -409,8 +409,7 @@ def _fold_partner(t1, t2, consts, scale, sigma_min):
     h = -2.0 * lin / q
     if abs(h) > FOLD_SPLIT_RADIUS:
         return None
-    w1, w2, r = _polish(*_along(t1, t2, h, left, sing, right, consts), *consts,
-                        tol=4e-16 * scale)
+    w1, w2, r = _polish(*_along(t1, t2, h, left, sing, right, consts), *consts, tol=4e-16 * scale)
     return (w1, w2, r) if r <= CONVERGED_TOL * scale else None
 
 
@@ -433,7 +432,8 @@ def _snap_double_roots(kept, consts, regular=frozenset()):
             continue
         g, left, sing, right, q = _reduction(t1, t2, *consts)
         lin = float(sing[1])
-        if _is_fold(q, consts) and lin * lin <= 2.0 * SNAP_FACTOR * abs(q) * ROUNDING_NOISE * scale:
+        if (_is_fold(q, consts)
+                and lin * lin <= 2.0 * SNAP_FACTOR * abs(q) * ROUNDING_NOISE * scale):
             h = -lin / q
             if abs(h) <= FOLD_SPLIT_RADIUS:
                 x1, x2 = _along(t1, t2, h, left, sing, right, consts)

@@ -25,10 +25,10 @@ Times are integer nanoseconds (as ROS clocks give them), so elapsed times are ex
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import functools
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -38,9 +38,9 @@ from .continuation import TrackingError
 from .events import Deferred, JumpAhead, Outcome, Passage, TrackingFailure
 from .mechanisms import make_jump, mechanism_for
 from .module import InvalidParameterError, ModuleParams
+from .start_state import start_state
 from .supported_range import check_supported
 from .tolerances import verified_minimum
-from .start_state import start_state
 from .tracking import ModuleJump
 
 #: What a failing solver may raise on a bad path (anything else is a bug and propagates).

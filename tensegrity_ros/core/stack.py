@@ -6,9 +6,9 @@ verified records, the tracker's entry points for a neck and a multi-start search
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 import functools
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import root

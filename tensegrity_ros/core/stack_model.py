@@ -28,14 +28,14 @@ lower module loads that module).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import functools
 import operator
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg.lapack import dgeqrf as _dgeqrf, dormqr as _dormqr
 
-from .module import ModuleParams, PARAMETER_NAMES, InvalidParameterError
+from .module import InvalidParameterError, ModuleParams, PARAMETER_NAMES
 
 # numpy's C routines without their __array_function__ dispatch (~0.2 us a call on these
 # small operands, as ndarray.dot against np.dot): the same routine, the same numbers.  Used
@@ -45,6 +45,8 @@ _concatenate = getattr(np.concatenate, '_implementation', np.concatenate)
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
 _PARAMETERS_OF = operator.attrgetter(*PARAMETER_NAMES)     # a module's parameters, in order
 _FIXED = 2          # A1(0) and A2(0) are the first two entries of the node table
+
+
 def _index(i, name):
     """Module i's parameter ``name`` in a stack's parameter vector (N x 12, flattened)."""
     return i * len(PARAMETER_NAMES) + _P[name]
@@ -66,8 +68,6 @@ def _solve_guarded(matrix, rhs):
 def _solve_gram(jc, rhs):
     """(J J^T)^-1 rhs, guarded as :func:`_solve_guarded`."""
     return _solve_guarded(jc @ jc.T, rhs)
-
-
 
 
 @dataclass(frozen=True)
@@ -129,10 +129,18 @@ class _Topology:
 
     def __init__(self, n):
         self.n = n
-        a3 = lambda i: 2 + 2 * i
-        a4 = lambda i: 3 + 2 * i
-        a1 = lambda i: 0 if i == 0 else a4(i - 1)
-        a2 = lambda i: 1 if i == 0 else a3(i - 1)
+
+        def a3(i):
+            return 2 + 2 * i
+
+        def a4(i):
+            return 3 + 2 * i
+
+        def a1(i):
+            return 0 if i == 0 else a4(i - 1)
+
+        def a2(i):
+            return 1 if i == 0 else a3(i - 1)
         self.a1, self.a2, self.a3, self.a4 = a1, a2, a3, a4
         self.nodes = 2 + 2 * n
         self.n_rods = 2 * n

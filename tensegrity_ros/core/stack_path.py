@@ -34,8 +34,8 @@ from scipy.linalg.lapack import dsygv as _dsygv
 from .module import InvalidParameterError, mirror_symmetric
 from .stack_flows import StackFlows
 from .stack_linkage import StackLinkage
-from .stack_model import (Stack, _Point, _Values, _concatenate, _null_basis, _solve_gram,
-                          _topology, _vdot)
+from .stack_model import (_concatenate, _null_basis, _Point, _solve_gram, _topology, _Values,
+                          _vdot, Stack)
 from .stack_reporting import StackReporting
 
 
@@ -43,8 +43,8 @@ class StackPath(StackFlows, StackLinkage, StackReporting):
     """A stack along p(s) = start + s (end - start), as a tracker PathProblem.
 
     State y = [absolute angles of the 2N rods (rad, from the base x axis),
-    multipliers of the N - 1 chord lengths in units of f_ref = max k * l_ref].  Node positions are sums of rod
-    vectors, so rods are rigid by construction; each chord is a constraint, scaled
+    multipliers of the N - 1 chord lengths in units of f_ref = max k * l_ref].  Node positions are
+    sums of rod vectors, so rods are rigid by construction; each chord is a constraint, scaled
     as (|A3 - A4|^2 - l^2) / (2 l_ref) (metres) so that its multiplier is the chord's
     compression force.  The residual is [dL/dphi / l_ref (N), constraints (m)].
     Stability eigenvalues are those of the reduced Hessian in the Cartesian metric of

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import math
 
-from .polynomial_solver import equilibria
 from .mechanisms import mechanism_for
+from .polynomial_solver import equilibria
 
 
 def upper_equilibrium(p):

@@ -7,15 +7,15 @@ reports every jump (fold or branch point) with where it lands.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
+import math
 
 import numpy as np
 
 from . import continuation as _continuation
+from .classification import _build, _eigenvalues_2x2, Equilibrium
 from .continuation import TrackerSettings
-from .classification import Equilibrium, _build, _eigenvalues_2x2
-from .module import ModuleParams, PARAMETER_NAMES, mirror_symmetric
+from .module import mirror_symmetric, ModuleParams
 from .tolerances import DEGENERACY_TOL, MARGIN_CERTIFIED, verified_minimum
 
 

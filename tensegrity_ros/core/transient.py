@@ -38,8 +38,8 @@ peak 33.5 rad/s).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import numpy as np
 from scipy.integrate import OdeSolution, solve_ivp

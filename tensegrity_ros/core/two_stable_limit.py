@@ -5,8 +5,8 @@ There the second stable equilibrium is born out of a totally degenerate one
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from scipy.optimize import root
@@ -16,6 +16,7 @@ from .module import ModuleParams
 
 # ---------------------------------------------------------------------------
 # Point C of fig. 6: the tip of the 2-stable region
+
 
 @dataclass(frozen=True)
 class TwoStableLimit:

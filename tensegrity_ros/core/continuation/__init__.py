@@ -27,9 +27,9 @@ The concepts, each in its own module (docs/architecture.md draws the arrows):
   :func:`track_settled`, :func:`settle`.
 """
 from .problem import PathProblem
-from .results import BRANCH_POINT, FOLD, PITCHFORK_CERTIFIED, Event, Track, TrackingError
-from .settings import (ARC_RESOLUTION, LOCATION_TOL, PITCHFORK_CONTRACTION, UNRESOLVED,
-                       UNRESOLVED_UPDATE, TrackerSettings)
+from .results import BRANCH_POINT, Event, FOLD, PITCHFORK_CERTIFIED, Track, TrackingError
+from .settings import (ARC_RESOLUTION, LOCATION_TOL, PITCHFORK_CONTRACTION, TrackerSettings,
+                       UNRESOLVED, UNRESOLVED_UPDATE)
 from .step_rules import (energy_consistent, forward_rate, near_prediction, positive_definite,
                          step_bound)
 from .tracker import settle, track, track_settled

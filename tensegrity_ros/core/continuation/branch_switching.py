@@ -13,8 +13,8 @@ normal form (:mod:`.certificates`), both past the branch point and back towards 
 """
 from __future__ import annotations
 
-import math
 from dataclasses import replace
+import math
 
 import numpy as np
 

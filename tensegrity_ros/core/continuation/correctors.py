@@ -9,9 +9,9 @@ import math
 
 import numpy as np
 
-from .. import bounded_work
 from .run_state import inf_norm
 from .settings import ARC_RESOLUTION
+from .. import bounded_work
 
 
 def curve_tangent(run, y, s, reference=None):

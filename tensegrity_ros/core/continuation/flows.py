@@ -14,9 +14,9 @@ import numpy as np
 from scipy.integrate import LSODA
 from scipy.optimize import minimize_scalar
 
-from .. import bounded_work
 from .run_state import inf_norm
 from .settings import CROSSING_APPROACH, MAX_CROSSING_LEGS
+from .. import bounded_work
 
 
 class FlowBudgetExceeded(Exception):

@@ -12,16 +12,16 @@ round a fold), then shrunk.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
-from .. import bounded_work
 from . import certificates
 from .correctors import arc_point, curve_tangent
 from .results import PITCHFORK_CERTIFIED, Track, TrackingError
 from .step_rules import near_prediction, step_bound
+from .. import bounded_work
 
 
 @dataclass

@@ -13,7 +13,7 @@ from . import ambiguity, indicators
 from .branch_switching import at_the_critical_point, follow_buckled
 from .flows import slide
 from .problem import admissible
-from .results import FOLD, Event, TrackingError
+from .results import Event, FOLD, TrackingError
 from .run_state import inf_norm
 
 

@@ -21,7 +21,7 @@ import numpy as np
 from . import ambiguity
 from .flows import slide, through_crossing
 from .lander import landing_at_event
-from .results import BRANCH_POINT, FOLD, Event
+from .results import BRANCH_POINT, Event, FOLD
 from .run_state import inf_norm, solve
 from .settings import EXACT_CROSSING_STALL, SNAP_DISTANCE
 from .. import bounded_work

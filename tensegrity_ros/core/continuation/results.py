@@ -1,4 +1,5 @@
-"""What tracking returns, as plain data: the jumps (:class:`Event`) and the run (:class:`Track`)."""
+"""What tracking returns, as plain data: the jumps (:class:`Event`) and the run
+(:class:`Track`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass

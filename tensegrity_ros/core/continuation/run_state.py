@@ -13,10 +13,10 @@ import math
 
 import numpy as np
 
-from .. import bounded_work
 from .problem import SubPath
 from .settings import UNRESOLVED_UPDATE
 from .step_rules import energy_consistent, forward_rate, positive_definite
+from .. import bounded_work
 
 
 def solve(matrix, rhs):
@@ -108,7 +108,8 @@ class RunState:
 
     # -- verification -------------------------------------------------------
     def residual_ok(self, y, s, factor=1.0):
-        return inf_norm(self.problem.residual(y, s)) <= factor * self.settings.residual_tol * self.scale
+        return (inf_norm(self.problem.residual(y, s))
+                <= factor * self.settings.residual_tol * self.scale)
 
     def definite(self, eigenvalues):
         return positive_definite(eigenvalues, self.scale, self.settings)

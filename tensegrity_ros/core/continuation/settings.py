@@ -1,8 +1,8 @@
 """The tracker's tolerances and step limits, each named and cited where it is used."""
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
+import time
 from typing import Callable
 
 from ..tolerances import DEFINITENESS_TOL

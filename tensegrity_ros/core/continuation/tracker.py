@@ -13,15 +13,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..bounded_work import Budget
-from ..tolerances import BRANCH_POINT_CERTIFIED
 from . import branch_switching, certificates, lander, linkage_limits, locator
 from .flows import slide
-from .follower import Follower, Move, Stop, out_of_budget
+from .follower import Follower, Move, out_of_budget, Stop
 from .problem import PathProblem
 from .results import Track, TrackingError
 from .run_state import RunState
 from .settings import LOCATION_TOL, TrackerSettings
+from ..bounded_work import Budget
+from ..tolerances import BRANCH_POINT_CERTIFIED
 
 
 class Events:
@@ -191,7 +191,8 @@ def _settle(problem, y0, s, settings):
     for sign in (1.0, -1.0):
         start = y0 if y is None else y
         eig, modes = problem.stability(start, s)
-        candidate = slide(run, problem.project(start + sign * run.step_off_vector(modes[:, 0]), s), s)
+        candidate = slide(
+            run, problem.project(start + sign * run.step_off_vector(modes[:, 0]), s), s)
         if candidate is not None:
             candidates.append(candidate)
     if not candidates:

@@ -1219,21 +1219,33 @@ def _nearby_minimum(system, y_a, s_m, y_b):
 def critical_solve(system, y, s):
     """{grad U = 0, det H = 0} solved from (y, s): scipy's root result, x = (state, [chord
     multipliers,] s)."""
+    scale = None
     if isinstance(system, NeckSystem):
-        z0 = np.concatenate([y, system.multipliers(y, s), [s]])
+        mu = system.multipliers(y, s)
+        z0 = np.concatenate([y, mu, [s]])
+        # a flat module's chord multiplier is ~1e5..1e7 N against angles of ~1: hybr's own
+        # column scaling does not always bridge that
+        scale = np.concatenate([np.ones(len(y)), 1.0 / np.maximum(np.abs(mu), 1.0), [1.0]])
     else:
         z0 = np.concatenate([y, [s]])
+    tries = [('hybr', {}), ('hybr', {'diag': scale}), ('lm', {})]
+    solutions = []
     with np.errstate(all='ignore'):
-        sol = root(system.critical_residual, z0, method='hybr', options={'xtol': 1e-14})
-        if sol.success:
-            return sol
-        # hybr stalls from some starts that Levenberg-Marquardt solves (and the other way
-        # round): 2.3e-6 in s before test_neck_fold_next_to_a_flat_module_...'s fold, hybr
-        # stopped at a residual of 2.8e-3 on the Nehalem kernel with numpy's SSE loops,
-        # where lm met the fold's equations to 7e-16; on Haswell, lm went astray there
-        other = root(system.critical_residual, z0, method='lm', options={'xtol': 1e-14})
-    size = lambda r: float(np.max(np.abs(system.critical_residual(r.x))))      # noqa: E731
-    return other if other.success and size(other) < size(sol) else sol
+        for method, options in tries:
+            if 'diag' in options and options['diag'] is None:
+                continue
+            sol = root(system.critical_residual, z0, method=method,
+                       options={'xtol': 1e-14, **options})
+            if sol.success:
+                return sol
+            solutions.append(sol)
+    # None converged by its own test: the smallest residual.  hybr stalls from some
+    # starts that the scaled hybr or Levenberg-Marquardt solve (and the other way round):
+    # 2.3e-6 in s before test_neck_fold_next_to_a_flat_module_...'s fold, hybr stopped at
+    # 2.8e-3 on the Nehalem kernel with numpy's SSE loops (lm: 7e-16) and at 0.2 on the
+    # Sandybridge kernel, where lm went astray too and the scaled hybr met the fold's
+    # equations to 5e-16
+    return min(solutions, key=lambda r: float(np.max(np.abs(system.critical_residual(r.x)))))
 
 
 def critical_point_in(system, y_a, s_a, s_b, slack=1e-10):

@@ -58,9 +58,17 @@ def computing_workers(process):
     the ones multiprocessing spawned (the resource tracker is a python child too)."""
     parent = psutil.Process(process.pid)
 
+    def command_line(p):
+        """``p``'s command line, '' once it has ended (a short-lived child of the command
+        seen as a zombie raised psutil.ZombieProcess here: H42's run, load ~4)."""
+        try:
+            return ' '.join(p.cmdline())
+        except psutil.NoSuchProcess:        # (ZombieProcess is one)
+            return ''
+
     def condition():
         workers = [p for p in parent.children(recursive=True)
-                   if 'spawn_main' in ' '.join(p.cmdline())]
+                   if 'spawn_main' in command_line(p)]
         busy = [w for w in workers if sum(w.cpu_times()[:2]) > 2.0]
         return workers if len(busy) >= 2 else None
     return condition

@@ -121,6 +121,31 @@ def test_worst_neck_sample_replayed_from_its_parameter_file(tmp_path):
     assert -(first['F3'] + first['F4']) == pytest.approx(w['value'], abs=1e-9)
 
 
+@pytest.mark.parametrize('which', ['neck', 'module'])
+def test_head_load_stopped_at_the_first_event_is_the_full_tracks(which, monkeypatch):
+    """The head-load question tracks each sample only to its first jump
+    (TrackerSettings.stop_at_first_event); the full track of the same samples, past the
+    jump to the end load, reports the same critical load, bit for bit (seeded samples)."""
+    from tensegrity_ros.core import tolerance_questions
+    from tensegrity_ros.core.continuation import TrackerSettings
+    if which == 'neck':
+        design = neck_design('config/neck.yaml', legs=[{'F': -9.0}])
+        tols, n, exact = ['k=3%', 'L1=0.0005', 'L2=0.0005'], 6, False
+    else:
+        design = module_design({'rho': 0.8, 'F': 0.0}, legs=[{'F': -60.0}])
+        tols, n, exact = ['k=5%', 'L2=0.001'], 8, True
+    assert tolerance_questions.FIRST_EVENT.stop_at_first_event
+    first = tolerance_study(design, 'head-load', tols, samples=n, seed=5, processes=1,
+                            exact=exact).figures
+    monkeypatch.setattr(tolerance_questions, 'FIRST_EVENT', TrackerSettings())
+    full = tolerance_study(design, 'head-load', tols, samples=n, seed=5, processes=1,
+                           exact=exact).figures
+    assert np.all(full['collapsed'] == 1.0)         # every sample jumps before the end load
+    for name in ('critical_load', 'critical_F3', 'critical_F4', 'collapse_kind',
+                 'collapsed', 'buckled_before'):
+        np.testing.assert_array_equal(first[name], full[name], err_msg=name)
+
+
 # -- the jump probability near C1 against a direct loop over the samples -------------------
 
 def gradient_hessian(p, t1, t2):

@@ -34,6 +34,7 @@ from . import branch_batch as bb, tolerance_batch as tb
 from .module import InvalidParameterError, ModuleParams, PARAMETER_NAMES, STANDARD_GRAVITY
 from .operation_range import operation_range
 from .polynomial_solver import equilibria
+from .continuation import TrackerSettings
 from .stack import Stack, track_stack
 from .start_state import start_state
 from .tolerance_sampling import sample_waypoints
@@ -338,6 +339,11 @@ class PlannedPath:
             out[f'landing_{name}_theta1'][i], out[f'landing_{name}_theta2'][i] = t
 
 
+#: The head-load question needs only where stability is first lost: its tracks end at
+#: their first jump (the same event as the full track's, test_tolerance_references).
+FIRST_EVENT = TrackerSettings(stop_at_first_event=True)
+
+
 @dataclass(frozen=True)
 class HeadLoad(PlannedPath):
     """A head load growing from the sample's start load to its end load (waypoints 0
@@ -396,11 +402,11 @@ class HeadLoad(PlannedPath):
             out['status'][i] = NO_START
             return
         if len(a) == 1:
-            track = track_module(a[0], b[0], state.theta)
+            track = track_module(a[0], b[0], state.theta, FIRST_EVENT)
             tops = [j.params for j in track.jumps]
             passed = [_path_s(a[0], b[0], p) for p in track.passages]
         else:
-            track = track_stack(Stack(a), Stack(b), state)
+            track = track_stack(Stack(a), Stack(b), state, FIRST_EVENT)
             tops = [j.stack.modules[-1] for j in track.jumps]
             passed = [p.s for p in track.passages]
         out['status'][i] = OK if track.status == 'ok' else TRACKING_FAILED

@@ -176,10 +176,13 @@ class Follower:
         """Follow the branch from (y, 0) to s_end: a :class:`.results.Track`."""
         y, eigenvalues = self.start(y, certificate)
         path = _Position(self.run, y, 0.0, eigenvalues)
+        first_only = self.run.settings.stop_at_first_event
         while path.s < s_end:
             stop = self.step(path, s_end)
             if stop is not None:
                 return path.result('failed', stop.message)
+            if first_only and path.events:
+                return path.result(message='stopped at the first event (stop_at_first_event)')
         return path.result()
 
     def step(self, path, s_end):

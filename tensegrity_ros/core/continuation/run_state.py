@@ -10,6 +10,7 @@ margin test, the weighted state norm.  The concepts (:mod:`.follower`,
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -79,9 +80,12 @@ class RunState:
         self.weights = None if weights is None else np.asarray(weights, dtype=float)
 
     def sub_run(self, s_a, s_b, settings=None):
-        """A fresh tracker on the part of this path from s_a to s_b."""
-        return self.nested(SubPath(self.problem, s_a, s_b),
-                           self.settings if settings is None else settings)
+        """A fresh tracker on the part of this path from s_a to s_b (never stopping at
+        its first event: a landing's checks read its events past it)."""
+        settings = self.settings if settings is None else settings
+        if settings.stop_at_first_event:
+            settings = replace(settings, stop_at_first_event=False)
+        return self.nested(SubPath(self.problem, s_a, s_b), settings)
 
     # -- norms -----------------------------------------------------------------
     def step_norm(self, v):

@@ -115,3 +115,9 @@ class TrackerSettings:
     time_budget: float | None = None
     #: The clock ``time_budget`` is read on (tests inject a counting clock).
     clock: Callable[[], float] = time.perf_counter
+    #: End the run at its first jump (status 'ok', ``s`` short of 1 where there is one):
+    #: the event as the full run reports it (its landing decides that it is a jump), no
+    #: tracking past it.  For questions that need only where stability is first lost (a
+    #: neck's critical head load, ``tensegrity tolerance head-load``).  Not passed on to
+    #: the runs a landing nests (:meth:`.run_state.RunState.sub_run`).
+    stop_at_first_event: bool = False

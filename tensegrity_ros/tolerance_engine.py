@@ -86,6 +86,7 @@ def _bar(progress, total, description):
     if not progress:
         return None
     from tqdm import tqdm
+
     # one refresh per finished chunk (a few per second at most): none is skipped
     return tqdm(total=total, unit=' ' + description, dynamic_ncols=True, leave=False,
                 mininterval=0.0)
@@ -172,7 +173,7 @@ def _check_workers(client, fingerprint):
 
 def _run_dask(function, chunks, processes, scheduler, progress, retries, sizes, description,
               fingerprint=None):
-    from distributed import Client, as_completed
+    from distributed import as_completed, Client
 
     t0 = time.perf_counter()
     cluster = client = None

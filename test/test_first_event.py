@@ -7,7 +7,7 @@ import pytest
 from tensegrity_ros.core.continuation import TrackerSettings
 from tensegrity_ros.core.module import ModuleParams
 from tensegrity_ros.core.polynomial_solver import equilibria
-from tensegrity_ros.core.stack import Stack, settle_stack, track_stack
+from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
 from tensegrity_ros.core.start_state import start_state
 from tensegrity_ros.core.tracking import track_module
 

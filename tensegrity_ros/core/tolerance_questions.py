@@ -31,10 +31,10 @@ import time
 import numpy as np
 
 from . import branch_batch as bb, tolerance_batch as tb
+from .continuation import TrackerSettings
 from .module import InvalidParameterError, ModuleParams, PARAMETER_NAMES, STANDARD_GRAVITY
 from .operation_range import operation_range
 from .polynomial_solver import equilibria
-from .continuation import TrackerSettings
 from .stack import Stack, track_stack
 from .start_state import start_state
 from .tolerance_sampling import sample_waypoints

@@ -9,8 +9,8 @@ margin test, the weighted state norm.  The concepts (:mod:`.follower`,
 """
 from __future__ import annotations
 
-import math
 from dataclasses import replace
+import math
 
 import numpy as np
 

@@ -1236,15 +1236,16 @@ def critical_solve(system, y, s):
                 continue
             sol = root(system.critical_residual, z0, method=method,
                        options={'xtol': 1e-14, **options})
-            if sol.success:
+            if sol.success and not solutions:
                 return sol
             solutions.append(sol)
-    # None converged by its own test: the smallest residual.  hybr stalls from some
-    # starts that the scaled hybr or Levenberg-Marquardt solve (and the other way round):
-    # 2.3e-6 in s before test_neck_fold_next_to_a_flat_module_...'s fold, hybr stopped at
-    # 2.8e-3 on the Nehalem kernel with numpy's SSE loops (lm: 7e-16) and at 0.2 on the
-    # Sandybridge kernel, where lm went astray too and the scaled hybr met the fold's
-    # equations to 5e-16
+    # Where plain hybr stalls, the smallest residual of the others (each may stop by its
+    # own test short of the equations' rounding floor, or go astray).  2.3e-6 in s before
+    # test_neck_fold_next_to_a_flat_module_...'s fold, hybr stopped at 2.8e-3 on the
+    # Nehalem kernel with numpy's SSE loops (lm: 7e-16) and at 0.2 on the Sandybridge
+    # kernel, where lm went astray too and the scaled hybr met the fold's equations to
+    # 5e-16; at test_a_neck_command_from_a_state_left_at_a_fold_...'s fold on Nehalem the
+    # scaled hybr stopped 'converged' at 4.7e-10, where lm reaches the floor
     return min(solutions, key=lambda r: float(np.max(np.abs(system.critical_residual(r.x)))))
 
 

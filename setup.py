@@ -37,7 +37,7 @@ setup(
     entry_points={
         'console_scripts': [
             'tensegrity_node = tensegrity_ros.node:main',
-            'tensegrity = tensegrity_ros.cli:main',
+            'tensegrity = tensegrity_ros.cli_entry:main',
         ],
     },
 )

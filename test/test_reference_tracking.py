@@ -819,7 +819,7 @@ def test_perfect_neck_against_the_reference(n, ramp):
 #: 0.5151800559 (perfect) / 0.5151800563 (imperfect).  On 8db3247 the tracker reported a
 #: branch_point (perfect) or a fold (imperfect) at the buckling.
 @pytest.mark.skipif(os.environ.get('FULL_NECKS') != '1',
-                    reason='~2 min of reference each: FULL_NECKS=1 (CI) runs them')
+                    reason='~2 min of reference each: FULL_NECKS=1 runs them (not CI)')
 @pytest.mark.parametrize('ka_error', [0.0, 1e-9])
 def test_ten_module_neck_under_a_head_load_against_the_reference(ka_error):
     start = paper_neck(10, 0.6, 0.0, {'ka': 100.0 * (1.0 + ka_error)} if ka_error else None)

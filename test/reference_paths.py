@@ -605,32 +605,27 @@ class NeckSystem:
             return None
         crossing = theta.copy()
         crossing[2 * i:2 * i + 2] = sol.x
+
+        def on_chord(a):
+            """The crossing with module i's angles a, first put back onto its chord
+            constraint (five Newton steps along the constraint's gradient)."""
+            for _ in range(5):
+                g = gradient(a)
+                a = a - chord(a) * g / float(g @ g)
+            state = crossing.copy()
+            state[2 * i:2 * i + 2] = a
+            return state
+
         if abs(offset) > 1e-9 * length:         # opened: offset + values . (u, v)^2 / 2 = 0
             k = 1 if offset < 0 else 0
             across = vectors[:, k] * math.sqrt(-2.0 * offset / values[k])
-            states = []
-            for way in (1.0, -1.0):
-                a = sol.x + way * across
-                for _ in range(5):
-                    g = gradient(a)
-                    a = a - chord(a) * g / float(g @ g)
-                state = crossing.copy()
-                state[2 * i:2 * i + 2] = a
-                states.append(state)
-            return crossing, states
+            return crossing, [on_chord(sol.x + way * across) for way in (1.0, -1.0)]
         states = []
         for sign in (1.0, -1.0):
             direction = (math.sqrt(values[1]) * vectors[:, 0]
                          + sign * math.sqrt(-values[0]) * vectors[:, 1])
             direction /= np.linalg.norm(direction)
-            for way in (1.0, -1.0):
-                a = sol.x + way * push * direction
-                for _ in range(5):          # back onto the chord constraint
-                    g = gradient(a)
-                    a = a - chord(a) * g / float(g @ g)
-                state = crossing.copy()
-                state[2 * i:2 * i + 2] = a
-                states.append(state)
+            states += [on_chord(sol.x + way * push * direction) for way in (1.0, -1.0)]
         return crossing, states
 
     def energy_seen_from(self, star, theta, s):
@@ -1228,12 +1223,11 @@ def critical_solve(system, y, s):
         scale = np.concatenate([np.ones(len(y)), 1.0 / np.maximum(np.abs(mu), 1.0), [1.0]])
     else:
         z0 = np.concatenate([y, [s]])
-    tries = [('hybr', {}), ('hybr', {'diag': scale}), ('lm', {})]
+    tries = [('hybr', {})] + ([('hybr', {'diag': scale})] if scale is not None else []) \
+        + [('lm', {})]
     solutions = []
     with np.errstate(all='ignore'):
         for method, options in tries:
-            if 'diag' in options and options['diag'] is None:
-                continue
             sol = root(system.critical_residual, z0, method=method,
                        options={'xtol': 1e-14, **options})
             if sol.success and not solutions:

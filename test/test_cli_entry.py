@@ -1,5 +1,6 @@
 """The ``tensegrity`` console script's entry point: a Ctrl-C while the tool imports (about a
 second) ends it with one line and status 130, as a Ctrl-C later does."""
+from importlib import metadata
 import subprocess
 import sys
 import textwrap
@@ -37,5 +38,9 @@ def test_the_entry_point_runs_the_tool(capsys):
 
 
 def test_the_installed_console_script_starts_at_the_entry_point():
+    """pip writes the module into the script; colcon's (setuptools') script looks the
+    entry point up in the installed metadata: the two ways a user's ``tensegrity`` starts."""
     script = installed_script('tensegrity').read_text()
-    assert 'tensegrity_ros.cli_entry' in script, script
+    (entry,) = metadata.entry_points(group='console_scripts', name='tensegrity')
+    assert entry.value == 'tensegrity_ros.cli_entry:main', entry
+    assert 'tensegrity_ros.cli_entry' in script or 'load_entry_point' in script, script

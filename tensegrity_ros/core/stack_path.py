@@ -80,7 +80,7 @@ class StackPath(StackFlows, StackLinkage, StackReporting):
             # start, has these very ones (a stream of actuator commands computes them once)
             _Values.share_scales(one, zero)
         self._values = {0.0: zero, 1.0: one}
-        self._point = None
+        self._point = self._previous_point = None
 
     # -- parameters at s -------------------------------------------------------
     def at(self, s):
@@ -117,13 +117,21 @@ class StackPath(StackFlows, StackLinkage, StackReporting):
         return np.column_stack([loads.real, loads.imag])
 
     def point(self, y, s):
-        """The evaluated :class:`_Point` at (y, s), reused while (y, s) stays the same."""
+        """The evaluated :class:`_Point` at (y, s): the last two are kept, since a
+        continuation step goes back and forth between its start and its end (the energy
+        test reads both, twice; the next step's tangent starts from the end)."""
         y = np.asarray(y, dtype=float)
         key = (s, y.tobytes())
         p = self._point
-        if p is None or p.key != key:
-            p = self._point = _Point(self, y, key, self.at(s))
-        return p
+        if p is not None and p.key == key:
+            return p
+        previous = self._previous_point
+        if previous is not None and previous.key == key:
+            self._point, self._previous_point = previous, p
+            return previous
+        # (its own copy of y: a caller may change its array in place, as project does)
+        self._previous_point, self._point = p, _Point(self, y.copy(), key, self.at(s))
+        return self._point
 
     def nodes(self, y, s):
         """All node positions (nodes x 2) including the fixed A1(0), A2(0)."""
@@ -140,6 +148,7 @@ class StackPath(StackFlows, StackLinkage, StackReporting):
         """A fresh :class:`_Point` at (y, s) (an ndarray), without a cache lookup: for a
         caller that holds its points (the small-command step) and calls the ``*_at``
         methods.  It becomes the cached point, so a record of y after it reuses it."""
+        self._previous_point = self._point
         p = self._point = _Point(self, y, (s, y.tobytes()), self.at(s))
         return p
 

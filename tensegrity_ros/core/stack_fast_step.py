@@ -158,8 +158,8 @@ def whole_command_step(path, y, settings, known=None):
     reach = _inf_norm(weights * backward)
     # the step bound's measure, as the tracker's: the node displacement, which the weighted
     # norm bounds, so it is computed only where that bound is not enough
-    motion = reach if reach <= cfg.max_state_step else path.motion_at(start, backward)
-    if not motion <= cfg.max_state_step:      # cheap early out: step_bound below says the same
+    motion = reach if reach <= cfg.max_step_motion else path.motion_at(start, backward)
+    if not motion <= cfg.max_step_motion:      # cheap early out: step_bound below says the same
         return None
     energy0 = path.energy_at(start) if known is None else known.energy
     energy_s0 = path.energy_s_at(start)

@@ -1,8 +1,8 @@
 """The path follower: natural steps, arclength steps where they fail, and step control.
 
 It knows nothing of jumps.  Per step: a tangent predictor and a Newton corrector; the
-step is bounded so that lambda_min is predicted to at most halve and the state moves at
-most ``max_state_step``; a step is accepted only if Newton contracts, lands near the
+step is bounded so that lambda_min is predicted to at most halve and the mechanism moves
+at most ``max_step_motion``; a step is accepted only if Newton contracts, lands near the
 prediction, the energy change matches the envelope theorem and the stability matrix is
 still positive definite (or a normal-form certificate holds, :mod:`.certificates`).  A
 rejected step is handed to the ``events`` policy (:class:`.tracker.Events`), which may

@@ -11,9 +11,9 @@ def positive_definite(eigenvalues, scale, settings):
 def step_bound(reach, lam, rate, settings):
     """The largest step in s the step rules allow from a state whose tangent has step
     norm ``reach`` and smallest eigenvalue ``lam`` changing at ``rate`` = d lambda / ds:
-    the state moves by at most max_state_step, lambda_min is predicted to shrink to no
-    less than eigenvalue_shrink of itself."""
-    ds = settings.max_state_step / max(reach, 1e-300)
+    the mechanism moves by at most max_step_motion, lambda_min is predicted to shrink to
+    no less than eigenvalue_shrink of itself."""
+    ds = settings.max_step_motion / max(reach, 1e-300)
     if rate < 0.0:
         ds = min(ds, (1.0 - settings.eigenvalue_shrink) * lam / -rate)
     return ds

@@ -377,6 +377,50 @@ def test_the_elastic_flow_says_where_its_chords_give(chord, damped):
     assert not StackPath(one, one).damped(np.array([0.3, 0.2]), 0.0)
 
 
+def central_differences(velocity, y, s, h=1e-7):
+    return np.column_stack([(velocity(y + h * e, s) - velocity(y - h * e, s)) / (2 * h)
+                            for e in np.eye(len(y))])
+
+
+@pytest.mark.parametrize('chord, damped', [(2.0, False), (2.499, False), (2.4999, True)])
+def test_the_flows_jacobians_are_their_velocities_derivatives(chord, damped):
+    """LSODA's corrector gets the landing flows' Jacobians from the path: the rigid flow's
+    is its velocity's derivative on the chords (to finite differences' 1e-6), next to a
+    module folded flat too; the elastic flow's too where it does not damp, and within 10 %
+    where it does (the damping's own derivative left out).  An error in either did not
+    show in any answer: LSODA's step control only made the flows slow (bench_neck_paths
+    seed 1, path 12: 5 s, from 1.1)."""
+    path, y = module_under_chord(chord)
+    y = y + 1e-3 * np.array([1.0, 0.5, -0.7, 0.4, 0.0])
+    y = path.project(y, 0.0)
+    for velocity, jacobian, tol in ((path.rigid_descent, path.rigid_descent_jacobian, 1e-6),
+                                    (path.descent, path.descent_jacobian,
+                                     0.1 if damped else 1e-6)):
+        expected = central_differences(velocity, y, 0.0)
+        found = jacobian(y, 0.0)
+        assert np.linalg.norm(found - expected) <= tol * np.linalg.norm(expected)
+        assert not np.any(found[:, 4:]) and not np.any(found[4:])    # the multiplier
+
+
+@pytest.mark.parametrize('n', [1, 2, 4])
+def test_the_flows_jacobians_hold_on_random_necks(n):
+    """As above, at random states of random necks (projected onto their chords) away
+    from rest, where the velocity's projection turns with the state."""
+    rng = np.random.default_rng(n)
+    for _ in range(5):
+        stack = Stack(tuple(ModuleParams(rho=rng.uniform(0.5, 0.9), L1=rng.uniform(0.8, 1.2),
+                                         L2=rng.uniform(0.8, 1.2), ka=rng.uniform(60, 140),
+                                         f3y=rng.uniform(-2, 2)) for _ in range(n)))
+        path = StackPath(stack, stack)
+        y = path.project(path.state_from_angles(rng.uniform(0.4, 1.2, (n, 2)), 0.0), 0.0)
+        assert path.on_constraints(y, 0.0) and not path.damped(y, 0.0)
+        for velocity, jacobian in ((path.rigid_descent, path.rigid_descent_jacobian),
+                                   (path.descent, path.descent_jacobian)):
+            expected = central_differences(velocity, y, 0.0)
+            assert np.linalg.norm(jacobian(y, 0.0) - expected) \
+                <= 1e-6 * np.linalg.norm(expected)
+
+
 def symmetric_module(rng):
     """A module that is its own mirror image, with random lengths, springs and loads."""
     length, k, fy, mass = rng.uniform(0.8, 1.2), rng.uniform(50, 150), rng.uniform(-3, 3), \

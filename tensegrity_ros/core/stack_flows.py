@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg.lapack import dpotrf as _dpotrf, dpotrs as _dpotrs, dsyevd as _dsyevd
 
-from .stack_model import _null_basis, _solve_gram, _solve_guarded
+from .stack_model import _null_basis, _Point, _solve_gram, _solve_guarded
 
 # Landing flow near kinematic singularities: the constraint Gram matrix (entries ~1)
 # is damped by up to _DAMPING once its smallest eigenvalue falls below _DAMPING_ONSET.
@@ -131,6 +131,82 @@ class StackFlows:
         tangential = z @ _spd_solve(z.T @ metric @ z, z.T @ gradient)
         pull = mobility_jc @ _spd_solve(gram, rate * p.constraints(self))
         return np.concatenate([-tangential - pull, np.zeros_like(p.mu)])
+
+    def descent_jacobian(self, y, s):
+        """d(:meth:`descent`)/dy at (y, s), for LSODA's implicit corrector (which
+        otherwise makes it by finite differences: one velocity per state component, a
+        third of a landing flow's evaluations): see :meth:`_flow_jacobian`."""
+        return self._flow_jacobian(y, s, rigid=False)
+
+    def rigid_descent_jacobian(self, y, s):
+        """d(:meth:`rigid_descent`)/dy at (y, s), as :meth:`descent_jacobian`."""
+        return self._flow_jacobian(y, s, rigid=True)
+
+    def _flow_jacobian(self, y, s, rigid):
+        """The Jacobian of a flow's velocity v = -K g - rate M^-1 Jc^T G^-1 c, K the
+        metric's inverse on the chords' tangent space (exact through a null basis for
+        the rigid flow, by the damped Gram matrix for the elastic one): dK g = K (H_L -
+        dM t) - M^-1 Jc^T G^-1 (dJc t), with t = K g the tangential velocity and H_L
+        the Hessian at the multipliers G^-1 Jc M^-1 g; the pull's derivative is taken
+        at c = 0 and the damping's as constant (the corrector needs only an
+        approximation: to ~1e-2 of finite differences where damped, ~1e-8 elsewhere,
+        on 800 states of bench_neck_paths' slowest flows).  Multipliers have zero
+        velocity and enter none: their rows and columns are zero."""
+        p = self.point(y, s)
+        n = self.topology.n_rods
+        out = np.zeros((self.size, self.size))
+        metric = p.metric(self)
+        factor = _cholesky(metric)
+        gradient = self._unconstrained_gradient(p)
+        if not self.topology.n_chords:
+            velocity = _cho_solve(factor, gradient)
+            out[:n, :n] = -_cho_solve(factor, self._multiplied_hessian(p, y, None)
+                                      - self._turning(p, velocity)[1])
+            return out
+        jc, mobility_jc, damped, rate = self._damped_constraints(p, factor)
+        gram = damped = _cholesky(damped)
+        if rigid:
+            try:
+                gram = _cholesky(jc @ mobility_jc)
+            except np.linalg.LinAlgError:       # at a flat crossing: damped
+                pass
+            z = _null_basis(jc, self.topology.trailing_columns)
+            reduced = _cholesky(z.T @ metric @ z)
+
+            def tangent(x):
+                return z @ _cho_solve(reduced, z.T @ x)
+        else:
+            def tangent(x):
+                w = _cho_solve(factor, x)
+                return w - mobility_jc @ _cho_solve(gram, jc @ w)
+        force = _cho_solve(gram, jc @ _cho_solve(factor, gradient))
+        curvature, metric_rate = self._turning(p, tangent(gradient))
+        out[:n, :n] = (mobility_jc @ _cho_solve(gram, curvature)
+                       - tangent(self._multiplied_hessian(p, y, force) - metric_rate)
+                       - rate * (mobility_jc @ _cho_solve(damped, jc)))
+        return out
+
+    def _multiplied_hessian(self, p, y, force):
+        """d2L/dphi2 at ``p``'s angles with the chord forces ``force`` (None: none)."""
+        if force is None:
+            return p.hessian(self)
+        at = np.array(y, dtype=float)
+        at[self.topology.n_rods:] = -force / self.f_ref
+        return _Point(self, at, None, p.values).hessian(self)
+
+    def _turning(self, p, t):
+        """(d(Jc t)/dphi, d(M t)/dphi) at fixed t (the rods turned, the constraint
+        gradients and the metric turn with them)."""
+        top, rods = self.topology, p.rods
+        crossed = (rods[:, None] * rods.conj()).imag * top.mobility
+        metric_rate = crossed * t
+        metric_rate.reshape(-1)[::len(t) + 1] -= crossed @ t
+        if not top.n_chords:
+            return None, metric_rate
+        moved = top.chord_rods @ (t * rods)
+        curvature = (t * (p.chords(self)[:, None].conj() * rods).real
+                     - (rods.conj() * moved[:, None]).real) * self.chord_rods_scaled
+        return curvature, metric_rate
 
     def project(self, y, s):
         """Nearby admissible rod angles (Gauss-Newton in the node metric, each step at

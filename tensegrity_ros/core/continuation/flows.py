@@ -15,7 +15,7 @@ from scipy.integrate import LSODA
 from scipy.optimize import minimize_scalar
 
 from .run_state import inf_norm
-from .settings import CROSSING_APPROACH, MAX_CROSSING_LEGS
+from .settings import CROSSING_APPROACH, JACOBIAN_EVALUATIONS, MAX_CROSSING_LEGS
 from .. import bounded_work
 
 
@@ -63,18 +63,31 @@ class _Flow:
             bounded_work.checkpoint()    # evaluations (scipy >= 1.17's LSODA is re-entrant)
         return self.field(v, self.s)
 
+    def jacobian(self, _t, v):
+        """d(velocity)/dv from the problem (LSODA's ``jac``), charged to the budget."""
+        self.budget -= JACOBIAN_EVALUATIONS
+        if self.budget < 0:
+            raise FlowBudgetExceeded
+        problem = self.run.problem
+        if self.is_rigid:
+            return problem.rigid_descent_jacobian(v, self.s)
+        return problem.descent_jacobian(v, self.s)
+
     def watch(self, solver):        # at each solver step of the elastic flow
         if not self.was_damped and self.damped_at(solver.y, self.s):
             self.was_damped = True
 
     def to_rest(self, run, y, tol):
         """Where this flow from ``y`` comes to rest (None where it does not)."""
+        has = hasattr(run.problem, 'rigid_descent_jacobian' if self.is_rigid
+                      else 'descent_jacobian')
+        jac = self.jacobian if has else None
         if self.is_rigid:
             # a rigid flow near a flat module is integrated as accurately as the
             # reference's: there its way (and its rest) turns on ~1e-7 of it
-            return rigid_flow_to_rest(run, self.velocity, y, self.s, tol)
+            return rigid_flow_to_rest(run, self.velocity, y, self.s, tol, jac)
         return flow_to_rest(run, self.velocity, y, tol,
-                            stop=None if self.damped_at is None else self.watch)
+                            stop=None if self.damped_at is None else self.watch, jac=jac)
 
 
 def slide(run, y, s, rigid_first=False, leash=None):
@@ -171,12 +184,13 @@ def downhill(run, a, b, s, samples=16):
     return all(e1 <= e0 + slack for e0, e1 in zip(energies, energies[1:]))
 
 
-def flow_to_rest(run, velocity, y, tol, rtol=1e-7, stop=None):
+def flow_to_rest(run, velocity, y, tol, rtol=1e-7, stop=None, jac=None):
     """Integrate dy/dt = velocity until |velocity| <= tol, or until ``stop(solver)``
     (called after each step) returns a state, which is then returned; ``None`` if
     the solver fails."""
     with np.errstate(all='ignore'):
-        solver = LSODA(velocity, 0.0, y, 1e7 / run.scale, rtol=rtol, atol=1e-3 * rtol)
+        solver = LSODA(velocity, 0.0, y, 1e7 / run.scale, rtol=rtol, atol=1e-3 * rtol,
+                       jac=jac)
         while solver.status == 'running':
             bounded_work.checkpoint()    # between solver steps (and inside: velocity)
             solver.step()
@@ -189,7 +203,7 @@ def flow_to_rest(run, velocity, y, tol, rtol=1e-7, stop=None):
     return solver.y if solver.status == 'finished' else None
 
 
-def rigid_flow_to_rest(run, velocity, y, s, tol):
+def rigid_flow_to_rest(run, velocity, y, s, tol, jac=None):
     """:func:`flow_to_rest` for the rigid flow, going on through the flat crossings
     of the problem's linkage (its optional ``flatness`` and ``crossing_ways``).
 
@@ -203,18 +217,18 @@ def rigid_flow_to_rest(run, velocity, y, s, tol):
     was this rule: a flow creeping onto a linkage limit is not cut short)."""
     flatness = getattr(run.problem, 'flatness', None)
     if flatness is None:
-        return flow_to_rest(run, velocity, y, tol, 1e-10)
+        return flow_to_rest(run, velocity, y, tol, 1e-10, jac=jac)
     for _ in range(MAX_CROSSING_LEGS):
         level = min(CROSSING_APPROACH, 0.1 * flatness(y, s))
         rest = flow_to_rest(run, velocity, y, tol, 1e-10,
-                            stop=crossing_stop(run, y, s, flatness, level))
+                            stop=crossing_stop(run, y, s, flatness, level), jac=jac)
         if rest is None or flatness(rest, s) >= level:
             return rest
         onward = through_crossing(run, rest, s)
         if onward is False:
             return None
         y = rest if onward is None else onward
-    return flow_to_rest(run, velocity, y, tol, 1e-10)
+    return flow_to_rest(run, velocity, y, tol, 1e-10, jac=jac)
 
 
 def crossing_stop(run, y, s, flatness, level):

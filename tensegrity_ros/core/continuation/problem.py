@@ -28,7 +28,9 @@ class PathProblem(Protocol):
     for positions and 0 for multipliers; default all ones) and ``canonical(y)``
     (a representative for comparing states, e.g. angles wrapped to [-pi, pi)).
     Landing flows use, where given: ``rigid_descent`` (the flow of the constrained model
-    itself, where ``descent`` lets the constraints give), ``damped(y, s)`` (whether
+    itself, where ``descent`` lets the constraints give), ``descent_jacobian`` and
+    ``rigid_descent_jacobian`` (their derivatives in y, for the integrator's implicit
+    corrector; else it makes them by finite differences), ``damped(y, s)`` (whether
     ``descent`` does so at y), ``flatness``, ``turned_through_base`` and
     ``crossing_ways`` (a linkage's crossings, see :func:`.flows.rigid_flow_to_rest`)
     and ``mirror(y, s)`` (the state's mirror image, or None where the problem has no
@@ -73,6 +75,11 @@ class SubPath:
             self.on_constraints = lambda y, t: problem.on_constraints(y, self.at(t))
         if hasattr(problem, 'rigid_descent'):
             self.rigid_descent = lambda y, t: problem.rigid_descent(y, self.at(t))
+        if hasattr(problem, 'descent_jacobian'):
+            self.descent_jacobian = lambda y, t: problem.descent_jacobian(y, self.at(t))
+        if hasattr(problem, 'rigid_descent_jacobian'):
+            self.rigid_descent_jacobian = lambda y, t: problem.rigid_descent_jacobian(
+                y, self.at(t))
         if hasattr(problem, 'damped'):
             self.damped = lambda y, t: problem.damped(y, self.at(t))
         if hasattr(problem, 'mirror'):

@@ -40,6 +40,10 @@ UNRESOLVED_UPDATE = 1e-9
 #: goes on through at most MAX_CROSSING_LEGS such stops per flow.
 CROSSING_APPROACH = 1e-3
 MAX_CROSSING_LEGS = 16
+#: A landing flow's Jacobian (the problem's optional ``descent_jacobian``, for LSODA's
+#: corrector) is charged to the flow's evaluation budget as this many velocities: what
+#: it costs (a neck N = 2..10: 1.7-2.2 velocities' CPU time).
+JACOBIAN_EVALUATIONS = 2
 #: Where a command ends on a module's flat crossing, a mechanism released there that
 #: comes to rest farther than this (weighted state norm) has jumped (see
 #: :func:`.linkage_limits.snap_at_end_crossing`): ten times the passage radius; a minimum

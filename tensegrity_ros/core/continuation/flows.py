@@ -15,8 +15,9 @@ from scipy.integrate import LSODA
 from scipy.optimize import minimize_scalar
 
 from .run_state import inf_norm
-from .settings import (CROSSING_APPROACH, JACOBIAN_EVALUATIONS, MAX_CROSSING_LEGS,
-                       REST_CHECK_MARGIN)
+from .settings import (CROSSING_APPROACH, ELASTIC_FLOW_RTOL, FAR_FROM_FLAT,
+                       JACOBIAN_EVALUATIONS, MAX_CROSSING_LEGS, REST_CHECK_MARGIN,
+                       RIGID_FLOW_RTOL)
 from .. import bounded_work
 
 
@@ -185,7 +186,7 @@ def downhill(run, a, b, s, samples=16):
     return all(e1 <= e0 + slack for e0, e1 in zip(energies, energies[1:]))
 
 
-def flow_to_rest(run, velocity, y, tol, rtol=1e-7, stop=None, jac=None):
+def flow_to_rest(run, velocity, y, tol, rtol=ELASTIC_FLOW_RTOL, stop=None, jac=None):
     """Integrate dy/dt = velocity until |velocity| <= tol, or until ``stop(solver)``
     (called after each step) returns a state, which is then returned; ``None`` if
     the solver fails."""
@@ -231,21 +232,29 @@ def rigid_flow_to_rest(run, velocity, y, s, tol, jac=None):
     the flow goes on from :func:`through_crossing`'s half-branch; else (a module
     flat at a linkage limit, no crossing) it flows on.  ``None`` where no way leads
     out; after MAX_CROSSING_LEGS legs it flows on without stopping (as before there
-    was this rule: a flow creeping onto a linkage limit is not cut short)."""
+    was this rule: a flow creeping onto a linkage limit is not cut short).  Each leg
+    at RIGID_FLOW_RTOL, but a first one from a state FAR_FROM_FLAT, at
+    ELASTIC_FLOW_RTOL until a module is that flat (or at rest)."""
     flatness = getattr(run.problem, 'flatness', None)
     if flatness is None:
-        return flow_to_rest(run, velocity, y, tol, 1e-10, jac=jac)
+        return flow_to_rest(run, velocity, y, tol, RIGID_FLOW_RTOL, jac=jac)
+    rtol = ELASTIC_FLOW_RTOL if flatness(y, s) >= FAR_FROM_FLAT else RIGID_FLOW_RTOL
     for _ in range(MAX_CROSSING_LEGS):
         level = min(CROSSING_APPROACH, 0.1 * flatness(y, s))
-        rest = flow_to_rest(run, velocity, y, tol, 1e-10,
-                            stop=crossing_stop(run, y, s, flatness, level), jac=jac)
+        coarse = rtol != RIGID_FLOW_RTOL        # far from flat: until FAR_FROM_FLAT
+        rest = flow_to_rest(run, velocity, y, tol, rtol, jac=jac, stop=crossing_stop(
+            run, y, s, flatness, FAR_FROM_FLAT if coarse else level))
+        rtol = RIGID_FLOW_RTOL
         if rest is None or flatness(rest, s) >= level:
+            if coarse and rest is not None:
+                y = rest                        # on from there at RIGID_FLOW_RTOL
+                continue
             return rest
         onward = through_crossing(run, rest, s)
         if onward is False:
             return None
         y = rest if onward is None else onward
-    return flow_to_rest(run, velocity, y, tol, 1e-10, jac=jac)
+    return flow_to_rest(run, velocity, y, tol, RIGID_FLOW_RTOL, jac=jac)
 
 
 def crossing_stop(run, y, s, flatness, level):

@@ -50,6 +50,19 @@ JACOBIAN_EVALUATIONS = 2
 #: over bench_neck_paths seeds 0-1 (133507 steps) the estimate was at most 35
 #: tolerances at a step the flow stopped at, and 86 % of the steps were above 1e3.
 REST_CHECK_MARGIN = 1e3
+#: A landing flow (elastic) is integrated to this relative tolerance (LSODA's rtol).
+ELASTIC_FLOW_RTOL = 1e-7
+#: A rigid landing flow is integrated to this relative tolerance (LSODA's rtol; the
+#: reference's, test/reference_paths.py): near a module folded flat its way, and where
+#: it rests, turns on ~1e-7 (config/neck.yaml's fold at s = 0.0823: at rtol 1e-7 it
+#: came to rest at module 0's flat crossing, the reference past it).
+RIGID_FLOW_RTOL = 1e-10
+#: A rigid landing flow starting with every module at least this flat (the problem's
+#: ``flatness``, its smallest chord gradient over l_ref) is integrated at
+#: ELASTIC_FLOW_RTOL until a module is this flat, then at RIGID_FLOW_RTOL: far from flat
+#: the way is no knife edge, and half the rigid flows start 0.4-0.6 flat
+#: (bench_neck_paths seeds 0-1: the same 108 answers, 13.2 -> 12.1 s of CPU in all).
+FAR_FROM_FLAT = 0.1
 #: Where a command ends on a module's flat crossing, a mechanism released there that
 #: comes to rest farther than this (weighted state norm) has jumped (see
 #: :func:`.linkage_limits.snap_at_end_crossing`): ten times the passage radius; a minimum

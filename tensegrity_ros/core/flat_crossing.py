@@ -13,6 +13,7 @@ along each half-branch, all on the constraints.
 Module i is moved in its own frame: its rods turn, and every rod above turns with its
 top chord (the modules above are carried rigidly), so only chord i's constraint moves.
 """
+import functools
 import math
 
 import numpy as np
@@ -51,10 +52,19 @@ def flatness(path, y, s):
     n_chords = path.topology.n_chords
     if not n_chords:
         return None, math.inf
-    jc = path.point(y, s).constraint_jacobian(path)
-    own = [np.linalg.norm(jc[i, 2 * i:2 * i + 2]) for i in range(n_chords)]
+    # (each module's pair at once: the same sums as a norm each on the x86 kernels but
+    # SkylakeX's, whose dot product fuses them; a landing flow asks at every step)
+    pairs = path.point(y, s).constraint_jacobian(path)[_own_columns(n_chords)]
+    own = np.sqrt((pairs * pairs).sum(axis=1))
     i = int(np.argmin(own))
     return i, float(own[i]) / path.l_ref
+
+
+@functools.lru_cache(maxsize=16)
+def _own_columns(n_chords):
+    """Index arrays of every chord i's gradient in module i's two rod angles."""
+    rows = np.arange(n_chords)[:, None]
+    return rows, 2 * rows + np.arange(2)
 
 
 def turned(path, y, s, i, angles):
@@ -126,8 +136,18 @@ def turned_through_base(path, a, b, s):
     """Whether a module with a chord above turned both its rods through its base line
     from state ``a`` to ``b`` (the sines of both its local angles changed sign): a flow
     step that did so may have passed its flat crossing between the two states."""
-    before, after = np.sin(path.angles(a, s)), np.sin(path.angles(b, s))
+    before, after = _base_sines(path, a, s), _base_sines(path, b, s)
     return bool(np.any(np.all(before * after < 0.0, axis=1)[:-1]))
+
+
+def _base_sines(path, y, s):
+    """The sines of the local angles of ``y``, the last kept on the path: a flow asks
+    for each state twice, as a step's end and then as the next step's start."""
+    key = (s, np.asarray(y).tobytes())
+    kept = getattr(path, '_kept_base_sines', None)
+    if kept is None or kept[0] != key:
+        kept = path._kept_base_sines = (key, np.sin(path.angles(y, s)))
+    return kept[1]
 
 
 def rounding(path, y, s):

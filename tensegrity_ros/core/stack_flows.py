@@ -55,6 +55,19 @@ def _smallest_eigenvalue(matrix):
     return float(values[0])
 
 
+def _smallest_below_onset(gram):
+    """The smallest eigenvalue of the chords' Gram matrix where it is below
+    ``_DAMPING_ONSET`` (the flows damp), else None.  A Cholesky factorization of gram -
+    onset I that succeeds proves there is none below (to rounding, where the damping
+    would add ~1e-3 (1e-16)^2: nothing), in ~1 us where the eigenvalue costs ~5 (a
+    landing flow asks at every evaluation)."""
+    shifted = gram - _DAMPING_ONSET * np.eye(len(gram))
+    if _dpotrf(shifted, lower=0, clean=0, overwrite_a=1)[1] == 0:
+        return None
+    smallest = _smallest_eigenvalue(gram)
+    return smallest if smallest < _DAMPING_ONSET else None
+
+
 class StackFlows:
     """The flows and the projection of :class:`.stack_path.StackPath`.  The metric, the
     chords' Gram matrix and the reduced metric are positive definite: they are solved
@@ -77,7 +90,9 @@ class StackFlows:
             return -free
         jc, mobility_jc, gram, rate = self._damped_constraints(p, metric)
         correction = _spd_solve(gram, jc @ free - rate * p.constraints(self))
-        return np.concatenate([-free + mobility_jc @ correction, np.zeros_like(p.mu)])
+        out = np.zeros(self.size)
+        out[:len(free)] = -free + mobility_jc @ correction
+        return out
 
     def _damped_constraints(self, p, metric):
         """(constraint Jacobian, metric^-1 jc^T, their Gram matrix damped, pull rate)
@@ -85,19 +100,27 @@ class StackFlows:
         (Levenberg): smooth through kinematic singularities of the stack, where rods fold
         flat onto a chord and the constraint rows degenerate."""
         jc, mobility_jc, gram, smallest = self._chord_gram(p, metric)
-        if smallest < _DAMPING_ONSET:
+        if smallest is not None:
             gram = gram + _DAMPING * (1.0 - smallest / _DAMPING_ONSET) ** 2 * np.eye(len(jc))
-        return jc, mobility_jc, gram, float(np.max(p.values.k)) * 2.0
+        return jc, mobility_jc, gram, self._pull_rate(p.values)
+
+    def _pull_rate(self, values):
+        """The flows' rate of pull onto the chords, 2 max k (kept for the last values:
+        a flow evaluates hundreds of states at one s)."""
+        kept = getattr(self, '_kept_pull_rate', None)
+        if kept is None or kept[0] is not values:
+            kept = self._kept_pull_rate = (values, float(np.max(values.k)) * 2.0)
+        return kept[1]
 
     def _chord_gram(self, p, metric=None):
         """(constraint Jacobian, metric^-1 jc^T, their Gram matrix, its smallest
-        eigenvalue): whether the flows damp turns on the last."""
+        eigenvalue where below ``_DAMPING_ONSET``, else None): whether the flows damp."""
         jc = p.constraint_jacobian(self)
         if metric is None:
             metric = _cholesky(p.metric(self))
         mobility_jc = _cho_solve(metric, jc.T)
         gram = jc @ mobility_jc
-        return jc, mobility_jc, gram, _smallest_eigenvalue(gram)
+        return jc, mobility_jc, gram, _smallest_below_onset(gram)
 
     def damped(self, y, s):
         """Whether :meth:`descent` damps its projection at ``y`` (a module so near flat
@@ -107,7 +130,7 @@ class StackFlows:
         mechanism does not (see :meth:`rigid_descent`)."""
         if not self.topology.n_chords:
             return False
-        return bool(self._chord_gram(self.point(y, s))[3] < _DAMPING_ONSET)
+        return self._chord_gram(self.point(y, s))[3] is not None
 
     def rigid_descent(self, y, s):
         """:meth:`descent` with the force projected exactly (through a null basis of the
@@ -130,7 +153,9 @@ class StackFlows:
         z = _null_basis(jc, self.topology.trailing_columns)
         tangential = z @ _spd_solve(z.T @ metric @ z, z.T @ gradient)
         pull = mobility_jc @ _spd_solve(gram, rate * p.constraints(self))
-        return np.concatenate([-tangential - pull, np.zeros_like(p.mu)])
+        out = np.zeros(self.size)
+        out[:len(gradient)] = -tangential - pull
+        return out
 
     def descent_jacobian(self, y, s):
         """d(:meth:`descent`)/dy at (y, s), for LSODA's implicit corrector (which

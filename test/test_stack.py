@@ -421,6 +421,37 @@ def test_the_flows_jacobians_hold_on_random_necks(n):
                 <= 1e-6 * np.linalg.norm(expected)
 
 
+@pytest.mark.parametrize('n, rtol', [(3, 1e-7), (5, 1e-10)])
+def test_a_flow_stops_at_the_step_its_velocity_says_it_rests(n, rtol):
+    """flow_to_rest evaluates a fresh velocity, to see whether it is at rest, only after
+    steps where LSODA's own estimate (speed_estimate) is within REST_CHECK_MARGIN of the
+    tolerance: at every step whose velocity is within 10 tolerances the estimate is
+    ten times inside that margin, so no rest is passed by."""
+    from types import SimpleNamespace
+    from tensegrity_ros.core.continuation.flows import flow_to_rest, speed_estimate
+    from tensegrity_ros.core.continuation.settings import REST_CHECK_MARGIN
+    rng = np.random.default_rng(n)
+    stack = Stack(tuple(ModuleParams(rho=rng.uniform(0.5, 0.9), L1=rng.uniform(0.8, 1.2),
+                                     ka=rng.uniform(60, 140), f3y=rng.uniform(-2, 2))
+                        for _ in range(n)))
+    path = StackPath(stack, stack)
+    rest = settle_stack(stack, np.full((n, 2), 0.9)).state
+    y = path.project(rest + np.concatenate([rng.uniform(-0.05, 0.05, 2 * n),
+                                            np.zeros(n - 1)]), 0.0)
+    scale = float(np.max(np.abs(path.eigenvalues(rest, 0.0))))
+    tol, seen = 1e-10 * scale, []
+
+    def record(solver):
+        fresh = np.max(np.abs(path.rigid_descent(solver.y, 0.0)))
+        seen.append((speed_estimate(solver), fresh))
+    end = flow_to_rest(SimpleNamespace(scale=scale), lambda _t, v: path.rigid_descent(v, 0.0),
+                       y, tol, rtol, stop=record, jac=lambda _t, v:
+                       path.rigid_descent_jacobian(v, 0.0))
+    assert np.max(np.abs(path.rigid_descent(end, 0.0))) <= tol
+    near = [estimate for estimate, fresh in seen if fresh <= 10 * tol]
+    assert near and max(near) <= 0.1 * REST_CHECK_MARGIN * tol, max(near) / tol
+
+
 def symmetric_module(rng):
     """A module that is its own mirror image, with random lengths, springs and loads."""
     length, k, fy, mass = rng.uniform(0.8, 1.2), rng.uniform(50, 150), rng.uniform(-3, 3), \

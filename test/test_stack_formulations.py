@@ -171,7 +171,7 @@ def test_the_fast_path_takes_a_command_exactly_when_the_tracker_takes_it_in_one_
     from tensegrity_ros.core.stack_fast_step import whole_command_step
     rng = np.random.default_rng(200 + n)
     taken = declined = 0
-    for size in (1e-4, 1e-3, 1e-2, 3e-2, 1e-1):
+    for size in (1e-4, 1e-3, 1e-2, 3e-2, 1e-1, 0.2):
         stack = random_stack(rng, n)
         state = settle_stack(stack, np.full((n, 2), 0.75))
         i = int(rng.integers(n))

@@ -107,7 +107,11 @@ def softest_on_the_upright_branch(s, theta):
     next to theta (N/m)."""
     model = NodeSpringNeck(modules_at(s), STIFFNESS)
     x, mu, residual = model.rigid_polish(model.nodes_from_angles(theta))
-    assert residual < 1e-10 and distance(model.angles(x), theta) < 1e-3
+    # within ~1e-9 in s of the branch point the KKT matrix is singular along the
+    # antisymmetric (buckling) mode: the polish stalls at rounding over lambda_min there
+    # (4e-10 seen on the Nehalem kernel), an error along the mode lambda_min does not
+    # depend on to first order (the mirror symmetry)
+    assert residual < 1e-8 and distance(model.angles(x), theta) < 1e-3
     return model.reduced_eigen(x, mu)[0][0]
 
 

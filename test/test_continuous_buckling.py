@@ -408,8 +408,12 @@ def test_a_command_ending_exactly_at_the_branch_point_ends_on_it():
     from tensegrity_ros.core.simulator import ModuleLimits, Simulator
     assert np.linalg.eigvalsh(module_hessian_upright(1.0))[0] == 0.0
     at = ModuleParams.paper(1.0)
+    # (0.51 and 0.99 on the buckled branch: the normal form's linear law put the branch
+    # point 2e-16 in s past the end, and the command ended on a buckled state pinned 8e-9
+    # rad off by the square-root law, from which the next command up never ended)
     for start, theta in ((1.3, np.zeros(2)), (1.1, np.zeros(2)), (0.75, np.full(2, 0.72)),
-                         (0.5, np.ones(2))):
+                         (0.5, np.ones(2)), (0.51, np.full(2, np.arccos(0.51))),
+                         (0.99, np.full(2, np.arccos(0.99)))):
         result = track_module(ModuleParams.paper(start), at, theta)
         assert result.status == 'ok' and result.jumps == (), (start, result.message)
         assert result.end.rho == 1.0 and result.final.stable and result.certificate

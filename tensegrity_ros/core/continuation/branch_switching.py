@@ -261,6 +261,14 @@ def _end_by_the_normal_form(run, y, s, s_end, lam, far, remembered):
         return None, s_end
     ratio = math.sqrt((s_star - s) / (s_star - s_far))     # of y's amplitude
     y_star = (y - ratio * far_state) / (1.0 - ratio)
+    if abs(s_end - s_star) <= UNRESOLVED:
+        # the command ends at the branch point to the law's resolution (2e-16 in s
+        # short of it, from the unloaded module's buckled branch at rho 0.51 to rho = 1):
+        # its degenerate minimum, as where a step reaches it (a buckled state pinned
+        # there by the law, 8e-9 rad off, was a start no command could leave)
+        at = at_branch_point(run, min(s_star, s_end), y_star, s_end, UNRESOLVED)
+        if at is not None:
+            return at, s_end
     if s_end < s_star:
         solved = solve_branch_point(run, y_star, s_star)
         if (solved is not None and s_end < solved[1]

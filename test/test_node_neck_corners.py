@@ -358,4 +358,6 @@ def test_softening_a_module_under_a_heavy_head_buckles_it_continuously(neck):
                              + 300.0 * (m != 'm1') for m, s in n.statuses().items()),
                  what='statuses after the change')
     assert not h.jumps and h.node.counters['jumps_total'] == 0
+    # (/diagnostics is published on its own timer: the path may end before its first one)
+    h.spin_until(lambda: h.counter('rejected_total') is not None, what='/diagnostics')
     assert h.node.counters['tracking_failures'] == 0 and h.counter('rejected_total') == 0

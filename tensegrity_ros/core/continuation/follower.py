@@ -219,6 +219,13 @@ class Follower:
             found = action[1]
         elif action is not None:
             return path.apply(action)
+        if found is None and rejected.reason == 'newton' and not path.shortened:
+            # Newton did not converge: first the natural step at half the length (the
+            # step was too long for its prediction: 97 of 152 rejected steps of
+            # bench_neck_paths' 'all' family went on to an arclength step that failed too)
+            path.shortened = True
+            path.ds *= 0.5
+            return None
         if found is None:
             arc = self.arc_or_event(rejected)
             if arc is not None and arc[0] == 'regular':
@@ -239,6 +246,7 @@ class _Position:
     def __init__(self, run, y, s, eigenvalues):
         self.run, self.y, self.s, self.eigenvalues = run, y, s, eigenvalues
         self.events, self.ds, self.rate = [], 1.0, None
+        self.shortened = False      # the step was halved once since the last accepted one
         self.keep()
 
     def keep(self):
@@ -253,6 +261,7 @@ class _Position:
         """An accepted natural step of ``ds`` to y1."""
         run = self.run
         run.certificate = certificate
+        self.shortened = False
         self.rate = run.last_rate = (eigenvalues1[0] - self.eigenvalues[0]) / ds
         s1 = self.s + ds
         self.y, self.s, self.eigenvalues = y1, s1, eigenvalues1
@@ -269,6 +278,7 @@ class _Position:
         run = self.run
         run.last_rate = (eigenvalues1[0] - self.eigenvalues[0]) / (s1 - self.s)
         self.y, self.s, self.eigenvalues, self.rate = y1, s1, eigenvalues1, None
+        self.shortened = False
         self.keep()
         run.note_margin(y1, s1, eigenvalues1)
         run.rescale(eigenvalues1)
@@ -278,7 +288,7 @@ class _Position:
         if isinstance(action, Stop):
             return action
         run = self.run
-        self.y, self.s = action.y, action.s
+        self.y, self.s, self.shortened = action.y, action.s, False
         if action.event is not None:
             self.events.append(action.event)
         if action.new_branch:

@@ -244,7 +244,7 @@ def test_a_speed_limited_actuator_waits_while_a_path_is_pending():
     length never steps by more than its rate allows), then it moves on at its rate."""
     tick = 10_000_000                                           # ns
     sim = Simulator([fig8a()], [[-1.0, -1.0]], [ModuleLimits(0.05, 1.95, max_rho_rate=0.1)],
-                    time_budget=3, clock=CountingClock(), work_limit=None)
+                    time_budget=1, clock=CountingClock(), work_limit=None)
     sim.set_parameters({0: {'ka': 400.0}}, 0, 'stiffer a spring')
     sim.command_rho(0, 0.6, 0)
     assert sim.pending and sim.target(0) == 0.6

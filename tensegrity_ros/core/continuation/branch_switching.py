@@ -328,6 +328,11 @@ def away_from_branch_point(run, y, s, length, certificate):
             # its own margin test (scaled to this state's stiffness) may refuse a state
             # this run verified: then there is no far state (must not end the command)
             return None
+        if away.state.stopped_at_event:
+            # the branch meets a critical point first, where every longer run meets it
+            # (the same line in parameter space: an imperfect N = 8 neck ran seven more,
+            # each to the same fold, 0.5 s; bench_neck_paths seed 1 path 49)
+            return None
         if far.status != 'ok' or far.events or far.passages:
             continue                # too short to leave the noise (or the wrong way)
         if far.eigenvalues[0] > margin * max(abs(far.eigenvalues[-1]), run.scale * 1e-3):

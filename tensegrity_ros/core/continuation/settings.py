@@ -94,11 +94,11 @@ class TrackerSettings:
     #: landings' leashes and the nearness tests of critical states are counted in it.
     max_state_step: float = 0.05
     #: Largest predicted motion in one step: the problem's ``motion`` (a neck: its largest
-    #: node displacement over l_ref), else the weighted state norm.  0.1: the tangent
-    #: predictor's error (its square, ~1e-2) is one Newton iteration more than at 0.05,
-    #: for half the steps (bench_neck_paths, seeds 0-1: the same answers on all 108
-    #: paths, median 47 -> 32 ms).
-    max_step_motion: float = 0.1
+    #: node displacement over l_ref), else the weighted state norm.  0.2: the tangent
+    #: predictor misses by ~its square, which Newton removes in one more iteration than
+    #: at 0.1, for half the steps; where it does not converge, the step is halved before
+    #: anything else (:meth:`.follower.Follower.rejected`).
+    max_step_motion: float = 0.2
     #: The smallest eigenvalue may be predicted to shrink to this fraction per step.
     eigenvalue_shrink: float = 0.5
     #: Residual accepted as an equilibrium, relative to the stability scale.

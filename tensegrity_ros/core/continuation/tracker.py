@@ -87,7 +87,7 @@ class Events:
             found = None
         if found is not None and found[1] <= s_end:
             if run.stop_at_events:
-                run.stopped_at_event = True
+                run.stopped_at_event = found[1]
                 return Stop(f'a critical point at s={found[1]!r} (not landed: stop_at_events)')
             # at a linkage limit the flow of land() stalls: cross it first
             moved = linkage_limits.through_linkage_limit(run, found[2], found[1], s_end)

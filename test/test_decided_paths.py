@@ -169,3 +169,26 @@ def test_a_ten_module_neck_buckles_under_a_head_load_without_a_jump(ka_error):
     assert 5.0 < far / near < 20.0, (near, far)              # ~ sqrt(100): continuous
     system = NeckSystem(end.modules)
     assert system.stability(np.ravel(got.final.theta), 0.0)[0][0] > 0.0
+
+
+# -- a run away from a branch point that meets a fold ----------------------------------------
+
+def test_runs_away_from_a_branch_point_stop_lengthening_at_the_fold_they_meet(monkeypatch):
+    """bench_neck_paths' seed 1 path 49 (an imperfect N = 8 neck, test/neck_path_families.py):
+    from a state just below the margin test the tracker looks for the branch point behind
+    it by following the branch away (branch_switching.away_from_branch_point), each try
+    ten times longer.  The try 7.4 in s long met a fold 0.24 in s away; the six longer ones
+    met the same fold (the same line in parameter space), 0.5 s of 1 s.  Now none longer
+    than 100 in s is made; the path's answer is unchanged: one fold, ok."""
+    from neck_path_families import paths
+    from tensegrity_ros.core.continuation.run_state import RunState
+    lengths, sub_run = [], RunState.sub_run
+
+    def counted(self, s_a, s_b, settings=None):
+        lengths.append(abs(s_b - s_a))
+        return sub_run(self, s_a, s_b, settings)
+    monkeypatch.setattr(RunState, 'sub_run', counted)
+    _, start, end, theta = paths(1, 9)[49]
+    result = track_stack(start, end, settle_stack(start, theta), BUDGET)
+    assert result.status == 'ok' and [j.kind for j in result.jumps] == ['fold']
+    assert lengths and max(lengths) < 100.0, sorted(lengths)[-3:]

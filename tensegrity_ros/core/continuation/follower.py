@@ -20,7 +20,7 @@ import numpy as np
 from . import certificates
 from .correctors import arc_point, curve_tangent
 from .results import PITCHFORK_CERTIFIED, Track, TrackingError
-from .step_rules import near_prediction, step_bound
+from .step_rules import motion_bound, near_prediction, step_bound
 from .. import bounded_work
 
 
@@ -201,7 +201,7 @@ class Follower:
             path.rate = run.eigenvalue_rate(y, s, tangent, eigenvalues[0])
         reach = run.motion(y, s, tangent)
         path.ds = ds = min(path.ds, s_end - s, step_bound(reach, eigenvalues[0], path.rate, cfg))
-        path.full = ds == cfg.max_step_motion / max(reach, 1e-300)     # (step_bound's own)
+        path.full = ds == motion_bound(reach, cfg)
         y1, eig1, reason = self.try_step(y, s, tangent, ds)
         certified = reason == 'indefinite' and self.certified(eigenvalues, eig1, path.rate, ds,
                                                               s_end - s)

@@ -56,7 +56,8 @@ class RunState:
         #: Stop (failed) at a critical point instead of landing: a landing's own
         #: minimum followed back to its event (nested landings there could recurse).
         self.stop_at_events = False
-        self.stopped_at_event = None    # the s it did so at (the run ended failed there)
+        #: The s of the critical point it stopped at so (the run then ended failed).
+        self.stopped_at_event = None
         #: From a pitchfork-certified state, solve a command's end short of its branch
         #: point by the normal form (off in the tracker that follows the branch away for it).
         self.normal_form_end = True

@@ -8,12 +8,18 @@ def positive_definite(eigenvalues, scale, settings):
     return eigenvalues[0] > settings.definiteness_tol * max(abs(eigenvalues[-1]), scale * 1e-3)
 
 
+def motion_bound(reach, settings):
+    """The step in s that moves the mechanism by max_step_motion along a tangent of step
+    norm ``reach``."""
+    return settings.max_step_motion / max(reach, 1e-300)
+
+
 def step_bound(reach, lam, rate, settings):
     """The largest step in s the step rules allow from a state whose tangent has step
     norm ``reach`` and smallest eigenvalue ``lam`` changing at ``rate`` = d lambda / ds:
     the mechanism moves by at most max_step_motion, lambda_min is predicted to shrink to
     no less than eigenvalue_shrink of itself."""
-    ds = settings.max_step_motion / max(reach, 1e-300)
+    ds = motion_bound(reach, settings)
     if rate < 0.0:
         ds = min(ds, (1.0 - settings.eigenvalue_shrink) * lam / -rate)
     return ds

@@ -62,11 +62,15 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
 
 
 #: Where the mechanism released at a critical state is let come to rest (in s past it)
-#: to see whether it stays next to it (:func:`released_rests_nearby`).
-RELEASE_OFFSETS = (1e-8, 1e-6)
+#: to see whether it stays next to it (:func:`released_rests_nearby`): a pair, and the
+#: next decade out where the nearer offset's rest is lost in the critical state's error.
+RELEASE_OFFSETS = (1e-8, 1e-6, 1e-4)
 #: A released flow that goes farther than this many step bounds rests nowhere near (the
 #: N = 7 neck's went 0.099 out before it came to rest 8.5e-3 from its departure).
 RELEASE_LEASH = 4.0
+#: Rests this many times farther at an offset 100 times farther: a branch going on (a
+#: square root gives 10, a line 100; a jump lands as far at both).
+RELEASE_RATIO = 3.0
 
 
 def released_rests_nearby(run, s_star, y_star, s_end):
@@ -78,24 +82,48 @@ def released_rests_nearby(run, s_star, y_star, s_end):
     branch, not its end: a module passing close to its flat crossing (a random N = 7
     neck, all actuators, the overdamped flow resting 1.1e-4, 3.5e-4, 1.1e-3 rad from the
     departure at 1e-8 .. 1e-6 past by the reference's own model, where a step-off of
-    1e-2 along the critical mode slid 0.02 rad onto the crossing's other arm, a 'fold')."""
-    near, far = (s_star + offset for offset in RELEASE_OFFSETS)
-    if far > s_end:
+    1e-2 along the critical mode slid 0.02 rad onto the crossing's other arm, a 'fold').
+
+    Where the rests at 1e-8 and 1e-6 are not 3 times apart but the nearer is within
+    ``passage_radius`` (the resolution of a state next to a critical point), the pair
+    1e-6 and 1e-4 decides: the located critical state may be off along its soft mode by
+    as much as the nearer rest's distance (a neck landed from a fold onto a module 0.037 from flat,
+    Sandybridge kernel: rests 9.3e-6 and 1.2e-5 from y*, whose own error is ~1e-5)."""
+    offsets = [offset for offset in RELEASE_OFFSETS if s_star + offset <= s_end]
+    if len(offsets) < 2:
         return None
     leash = RELEASE_LEASH * run.settings.max_state_step
     # (a flow that goes far: no rest near; its way out from the departure overshoots the
     # rest by up to ~12 times.)  The farther offset first: past a fold, where no rest is
     # near, its flow leaves the fold's ghost ~10 times sooner (the passage time goes as
     # 1 / sqrt(the offset)), and the nearer one is then not needed (the same answer)
-    rest_far = slide(run, y_star, far, leash=leash)
-    if rest_far is None or not run.separation(rest_far, y_star) < run.settings.max_state_step:
+    far = s_star + offsets[1]
+    rest_far, far_by = _rest_nearby(run, y_star, far, leash)
+    if rest_far is None:
         return None
-    rest_near = slide(run, y_star, near, leash=leash)
+    rest_near, near_by = _rest_nearby(run, y_star, s_star + offsets[0], leash)
     if rest_near is None:
         return None
-    if not run.separation(rest_far, y_star) >= 3.0 * run.separation(rest_near, y_star):
+    if far_by >= RELEASE_RATIO * near_by:
+        return rest_far, far
+    if len(offsets) < 3 or near_by > run.settings.passage_radius:
+        return None             # (a move the located critical state's error cannot make)
+    _, farther_by = _rest_nearby(run, y_star, s_star + offsets[2], leash)
+    if farther_by is None or not farther_by >= RELEASE_RATIO * far_by:
         return None
     return rest_far, far
+
+
+def _rest_nearby(run, y_star, s, leash):
+    """(rest, its distance from y_star) of the flow released at y_star frozen at s, where
+    it rests within one step bound of it; (None, None) elsewhere."""
+    rest = slide(run, y_star, s, leash=leash)
+    if rest is None:
+        return None, None
+    distance = run.separation(rest, y_star)
+    if not distance < run.settings.max_state_step:
+        return None, None
+    return rest, distance
 
 
 def landing_offset(run, kind, y_star, s_star):

@@ -20,7 +20,7 @@ import numpy as np
 from . import certificates
 from .correctors import arc_point, curve_tangent
 from .results import PITCHFORK_CERTIFIED, Track, TrackingError
-from .step_rules import motion_bound, near_prediction, step_bound
+from .step_rules import near_prediction, step_bound
 from .. import bounded_work
 
 
@@ -199,9 +199,8 @@ class Follower:
             tangent = np.zeros_like(y)
         if path.rate is None:
             path.rate = run.eigenvalue_rate(y, s, tangent, eigenvalues[0])
-        reach = run.motion(y, s, tangent)
-        path.ds = ds = min(path.ds, s_end - s, step_bound(reach, eigenvalues[0], path.rate, cfg))
-        path.full = ds == motion_bound(reach, cfg)
+        path.ds = ds = min(path.ds, s_end - s,
+                           step_bound(run.motion(y, s, tangent), eigenvalues[0], path.rate, cfg))
         y1, eig1, reason = self.try_step(y, s, tangent, ds)
         certified = reason == 'indefinite' and self.certified(eigenvalues, eig1, path.rate, ds,
                                                               s_end - s)
@@ -220,14 +219,11 @@ class Follower:
             found = action[1]
         elif action is not None:
             return path.apply(action)
-        if found is None and rejected.reason == 'newton' and path.full:
-            # Newton did not converge on a step as long as the motion bound allows: first
-            # the natural step at half the length (too long for its prediction: 97 of 152
-            # rejected steps of bench_neck_paths' 'all' family went on to an arclength
-            # step that failed too).  A step already shorter goes on as before (halving
-            # those too, a neck landed from a fold and stepping onto a flat module listed
-            # a false branch point after it on the Sandybridge kernel: test_reference_
-            # tracking::test_a_neck_command_from_a_state_left_at_a_fold_jumps_at_its_start)
+        if found is None and rejected.reason == 'newton' and not path.shortened:
+            # Newton did not converge: first the natural step at half the length (the
+            # step was too long for its prediction: 97 of 152 rejected steps of
+            # bench_neck_paths' 'all' family went on to an arclength step that failed too)
+            path.shortened = True
             path.ds *= 0.5
             return None
         if found is None:
@@ -250,7 +246,7 @@ class _Position:
     def __init__(self, run, y, s, eigenvalues):
         self.run, self.y, self.s, self.eigenvalues = run, y, s, eigenvalues
         self.events, self.ds, self.rate = [], 1.0, None
-        self.full = False           # the step is as long as the motion bound allows
+        self.shortened = False      # the step was halved once since the last accepted one
         self.keep()
 
     def keep(self):
@@ -265,6 +261,7 @@ class _Position:
         """An accepted natural step of ``ds`` to y1."""
         run = self.run
         run.certificate = certificate
+        self.shortened = False
         self.rate = run.last_rate = (eigenvalues1[0] - self.eigenvalues[0]) / ds
         s1 = self.s + ds
         self.y, self.s, self.eigenvalues = y1, s1, eigenvalues1
@@ -281,6 +278,7 @@ class _Position:
         run = self.run
         run.last_rate = (eigenvalues1[0] - self.eigenvalues[0]) / (s1 - self.s)
         self.y, self.s, self.eigenvalues, self.rate = y1, s1, eigenvalues1, None
+        self.shortened = False
         self.keep()
         run.note_margin(y1, s1, eigenvalues1)
         run.rescale(eigenvalues1)
@@ -290,7 +288,7 @@ class _Position:
         if isinstance(action, Stop):
             return action
         run = self.run
-        self.y, self.s = action.y, action.s
+        self.y, self.s, self.shortened = action.y, action.s, False
         if action.event is not None:
             self.events.append(action.event)
         if action.new_branch:

@@ -657,6 +657,44 @@ def test_a_neck_command_from_a_state_left_at_a_fold_jumps_at_its_start():
         assert angle_distance(np.ravel(got.final.theta), theta) < 1e-2
 
 
+@pytest.mark.numerics
+def test_a_branch_going_on_through_a_critical_point_is_told_from_the_points_own_error(
+        monkeypatch):
+    """After the fold-left command's jump the neck steps onto a module 0.037 from flat,
+    where lambda_min touches zero at s* = 0.0053927 and the branch goes on (the reference:
+    one jump).  The mechanism released at the located y*, frozen 1e-8 and 1e-6 past s*,
+    rests next to it: 8e-6 rad, which is what y* is known to along its soft mode (on
+    the Sandybridge kernel 9.3e-6 and 1.2e-5 from the located y*, and a false
+    'branch_point' was listed).  With y* moved 1e-5 .. 3e-5 along the mode, both rests
+    are that far; the rest at 1e-4 past (8e-4 away) still shows the branch going on.
+    At the fold itself (s = 0) the released mechanism rests 1.2e-4 away at every offset:
+    a jump, whichever y*."""
+    from tensegrity_ros.core.continuation import lander
+    seen = []
+    decide = lander.released_rests_nearby
+
+    def spy(run, s_star, y_star, s_end):
+        seen.append((run, s_star, np.array(y_star), s_end))
+        return decide(run, s_star, y_star, s_end)
+
+    monkeypatch.setattr(lander, 'released_rests_nearby', spy)
+    start, end = fold_left_neck(1.0)
+    assert [j.kind for j in track_stack(start, end, np.array(FOLD_LEFT_STATE)).jumps] == ['fold']
+    (fold, *_), on = [c for c in seen if c[1] == 0.0], [c for c in seen if c[1] > 1e-3]
+    run, s_star, y_star, s_end = on[0]
+    assert abs(s_star - 0.0053927) < 1e-6
+    psi = run.critical(y_star, s_star)[1]
+    psi = psi / run.step_norm(psi)
+    for off in (0.0, 1e-5, -1e-5, 3e-5, -3e-5):
+        goes_on = decide(run, s_star, y_star + off * psi, s_end)
+        assert goes_on is not None, off
+        assert run.separation(goes_on[0], y_star) < 1e-4 and goes_on[1] > s_star
+    run, s_star, y_star, s_end = fold
+    psi = run.critical(y_star, s_star)[1]
+    for off in (0.0, 1e-5, -1e-5):
+        assert decide(run, s_star, y_star + off * psi / run.step_norm(psi), s_end) is None, off
+
+
 # -- the nearly symmetric N = 3 neck of the issue -----------------------------------------------
 
 def paper_neck(n, rho, head, first=None):

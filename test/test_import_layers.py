@@ -84,9 +84,11 @@ def test_core_imports_only_core_the_standard_library_numpy_scipy():
         assert outside - sys.stdlib_module_names - {'__future__'} <= allowed, (name, outside)
 
 
-#: The one module that may compile (numba): the neck's equations of motion per
-#: evaluation, the live loop's inner loop (see its docstring for the numpy figures).
-COMPILED = {'tensegrity_ros.core.neck_kernel': {'numba'}}
+#: The modules that may compile (numba): the neck's equations of motion per evaluation,
+#: the live loop's inner loop, and the neck's elastic gradient flow, a batch question's
+#: (see their docstrings for the numpy figures).
+COMPILED = {'tensegrity_ros.core.neck_kernel': {'numba'},
+            'tensegrity_ros.core.stack_flow_kernel': {'numba'}}
 
 
 @pytest.mark.parametrize('tool', ['figures', 'problem', 'params_file', 'module_parameters'])

@@ -184,9 +184,17 @@ def _checked_angles(theta, n):
     return theta.reshape(n, 2)
 
 
+def _path(start, end, settings):
+    """The :class:`StackPath` from start to end, its flows compiled where ``settings`` asks."""
+    path = StackPath(start, end)
+    if settings.compiled_flows:
+        path.compile_flows()
+    return path
+
+
 def settle_stack(stack: Stack, theta_guess, settings: TrackerSettings = TrackerSettings()):
     """The stable equilibrium whose basin holds the configuration ``theta_guess`` (N x 2)."""
-    path = StackPath(stack, stack)
+    path = _path(stack, stack, settings)
     y0 = path.state_from_angles(_checked_angles(theta_guess, len(stack)), 0.0)
     return _record(path, _continuation.settle(path, y0, 0.0, settings), 0.0)
 
@@ -198,7 +206,7 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
     ``state_or_theta`` is a :class:`StackEquilibrium`, a tracker state, or local
     angles (N x 2) to settle from.
     """
-    path = StackPath(start, end)
+    path = _path(start, end, settings)
     if isinstance(state_or_theta, StackEquilibrium):
         y0 = state_or_theta.state
     else:

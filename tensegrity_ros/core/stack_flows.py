@@ -80,9 +80,35 @@ class StackFlows:
         springs = top.element_rods_t[:, :ns] @ (p.weights[:ns] * p.diff[:ns])
         return (p.rods.conj() * (springs - p.values.rod_loads)).imag
 
+    def compile_flows(self):
+        """Evaluate :meth:`descent` and :meth:`damped` by the compiled kernels of
+        :mod:`.stack_flow_kernel` from now on (where numba is available)."""
+        from . import stack_flow_kernel
+        self.flow_kernel = stack_flow_kernel.compiled()
+        if self.flow_kernel is not None and self.weight_map is None:
+            self._no_weight_map = np.zeros((len(self.topology.element_rods_c), 0))
+
+    def _kernel_arguments(self, y, s):
+        """(y, n, n_springs, rod, shift, weights, weight map, element-rod map) of the
+        compiled kernels at (y, s)."""
+        values, top = self.at(s), self.topology
+        weight_map = self.weight_map if self.weight_map is not None else self._no_weight_map
+        return (np.asarray(y, dtype=float), top.n_rods, top.n_springs, values.rod,
+                values.shift, values.weights, weight_map, top.element_rods_c), values
+
     def descent(self, y, s):
         """Overdamped velocity in the Cartesian metric of the nodes: the projected force
         plus a pull back onto the chord constraints."""
+        if self.flow_kernel is not None:
+            (y, n, ns, *common), values = self._kernel_arguments(y, s)
+            out = self.flow_kernel.descent(
+                y, self.size, n, ns, *common, self.topology.element_rods_t,
+                values.rod_loads, self.topology.mobility, self.chord_rods_scaled,
+                values.chord_squares, self.half_inv_l_ref, self._pull_rate(values),
+                _DAMPING, _DAMPING_ONSET)
+            if not out.size:
+                raise np.linalg.LinAlgError('not positive definite (compiled descent)')
+            return out
         p = self.point(y, s)
         metric = _cholesky(p.metric(self))
         free = _cho_solve(metric, self._unconstrained_gradient(p))
@@ -130,6 +156,13 @@ class StackFlows:
         mechanism does not (see :meth:`rigid_descent`)."""
         if not self.topology.n_chords:
             return False
+        if self.flow_kernel is not None:
+            (y, n, ns, *common), _ = self._kernel_arguments(y, s)
+            found = self.flow_kernel.damped(y, n, ns, *common, self.topology.mobility,
+                                            self.chord_rods_scaled, _DAMPING_ONSET)
+            if found < 0:
+                raise np.linalg.LinAlgError('not positive definite (compiled damped)')
+            return bool(found)
         return self._chord_gram(self.point(y, s))[3] is not None
 
     def rigid_descent(self, y, s):

@@ -81,6 +81,7 @@ class StackPath(StackFlows, StackLinkage, StackReporting):
             _Values.share_scales(one, zero)
         self._values = {0.0: zero, 1.0: one}
         self._point = self._previous_point = None
+        self.flow_kernel = None         # the compiled flows (compile_flows), or numpy's
 
     # -- parameters at s -------------------------------------------------------
     def at(self, s):

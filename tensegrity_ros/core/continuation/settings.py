@@ -151,3 +151,8 @@ class TrackerSettings:
     #: neck's critical head load, ``tensegrity tolerance head-load``).  Not passed on to
     #: the runs a landing nests (:meth:`.run_state.RunState.sub_run`).
     stop_at_first_event: bool = False
+    #: Evaluate the problem's gradient flows by its compiled kernels where it has them
+    #: (a neck: :mod:`..stack_flow_kernel`, numba, loaded on first use; the same
+    #: equations to rounding, ~10 times faster).  Off by default: a quasi-static node
+    #: never loads numba.  For batch questions (``tensegrity tolerance`` on a neck).
+    compiled_flows: bool = False

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from .continuation import TrackerSettings
 from .events import BranchEnd, Jump
 from .module import node_positions
 from .operation_range import operation_range
@@ -85,8 +86,8 @@ class OneModule:
         self._count_cache = None
         self._range_cache = None
 
-    def settle(self, modules, thetas):
-        return settle(modules[0], thetas[0])
+    def settle(self, modules, thetas, settings=None):
+        return settle(modules[0], thetas[0])        # (a module settles without a tracker)
 
     def track(self, start, end, state):
         track = track_module(start[0], end[0], state.theta,
@@ -154,8 +155,8 @@ class Neck:
             self._last = (modules, Stack(modules))
         return self._last[1]
 
-    def settle(self, modules, thetas):
-        return settle_stack(Stack(modules), thetas)
+    def settle(self, modules, thetas, settings=None):
+        return settle_stack(Stack(modules), thetas, settings or TrackerSettings())
 
     def track(self, start, end, state):
         start = self._stack(start)

@@ -42,9 +42,10 @@ def upright_guess(modules):
     return guess
 
 
-def start_state(modules, guess=None):
+def start_state(modules, guess=None, settings=None):
     """The verified stable start state of ``modules`` (an ``Equilibrium`` for one module,
-    a ``StackEquilibrium`` for a neck), settled from ``guess`` (N x 2) or the default.
+    a ``StackEquilibrium`` for a neck), settled from ``guess`` (N x 2) or the default
+    (a neck by the tracker's flows, with ``settings`` where given: compiled flows).
 
     Raises ValueError (or TrackingError) if no stable equilibrium is reached.
     """
@@ -53,7 +54,7 @@ def start_state(modules, guess=None):
         if len(modules) == 1:
             return upper_equilibrium(modules[0])
         guess = upright_guess(modules)
-    state = mechanism_for(len(modules)).settle(modules, [list(t) for t in guess])
+    state = mechanism_for(len(modules)).settle(modules, [list(t) for t in guess], settings)
     if not state.stable:
         raise ValueError('settled on a state that is not a stable equilibrium')
     return state

@@ -292,7 +292,7 @@ class PlannedPath:
             out['status'][i] = INVALID
             return
         try:
-            state = start_state(stops[0], None if self.guess is None else self.guess)
+            state = start_state(stops[0], None if self.guess is None else self.guess, NECK)
         except (ValueError, RuntimeError):
             out['status'][i] = NO_START
             return
@@ -302,7 +302,7 @@ class PlannedPath:
                 track = track_module(a[0], b[0], state.theta, certificate=certificate)
                 certificate = track.certificate
             else:
-                track = track_stack(Stack(a), Stack(b), state)
+                track = track_stack(Stack(a), Stack(b), state, NECK)
             jumps += [(leg, j) for j in track.jumps]
             state = track.final
             if track.status != 'ok':
@@ -339,9 +339,13 @@ class PlannedPath:
             out[f'landing_{name}_theta1'][i], out[f'landing_{name}_theta2'][i] = t
 
 
+#: A neck sample's tracks (and its start settle) run the compiled gradient flows
+#: (:mod:`.stack_flow_kernel`: the same equations to rounding, a third of a head-load
+#: sample's time where numpy's ran two thirds of it).
+NECK = TrackerSettings(compiled_flows=True)
 #: The head-load question needs only where stability is first lost: its tracks end at
 #: their first jump (the same event as the full track's, test_tolerance_references).
-FIRST_EVENT = TrackerSettings(stop_at_first_event=True)
+FIRST_EVENT = TrackerSettings(stop_at_first_event=True, compiled_flows=True)
 
 
 @dataclass(frozen=True)
@@ -397,7 +401,7 @@ class HeadLoad(PlannedPath):
             out['status'][i] = INVALID
             return
         try:
-            state = start_state(a, None if self.guess is None else self.guess)
+            state = start_state(a, None if self.guess is None else self.guess, FIRST_EVENT)
         except (ValueError, RuntimeError):
             out['status'][i] = NO_START
             return

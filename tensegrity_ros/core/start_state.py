@@ -54,7 +54,9 @@ def start_state(modules, guess=None, settings=None):
         if len(modules) == 1:
             return upper_equilibrium(modules[0])
         guess = upright_guess(modules)
-    state = mechanism_for(len(modules)).settle(modules, [list(t) for t in guess], settings)
+    mechanism, thetas = mechanism_for(len(modules)), [list(t) for t in guess]
+    state = (mechanism.settle(modules, thetas) if settings is None
+             else mechanism.settle(modules, thetas, settings))
     if not state.stable:
         raise ValueError('settled on a state that is not a stable equilibrium')
     return state

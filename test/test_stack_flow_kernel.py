@@ -15,6 +15,9 @@ from tensegrity_ros.core.stack import settle_stack, track_stack
 from tensegrity_ros.core.stack_flows import StackFlows
 from tensegrity_ros.core.stack_path import StackPath
 
+#: (the numpy side is the BLAS kernel's: run under every kernel of make test-numerics)
+pytestmark = pytest.mark.numerics
+
 #: bench_neck_paths' seed 0 paths whose flows pass modules near flat (limit family) and
 #: land jumps (head loads, perfect and imperfect necks, N = 2..10)
 PATHS = (18, 19, 20, 21, 22, 23, 27, 29, 36, 37, 45, 46, 47, 49, 53)

@@ -680,9 +680,10 @@ def test_a_branch_going_on_through_a_critical_point_is_told_from_the_points_own_
     monkeypatch.setattr(lander, 'released_rests_nearby', spy)
     start, end = fold_left_neck(1.0)
     assert [j.kind for j in track_stack(start, end, np.array(FOLD_LEFT_STATE)).jumps] == ['fold']
-    (fold, *_), on = [c for c in seen if c[1] == 0.0], [c for c in seen if c[1] > 1e-3]
-    run, s_star, y_star, s_end = on[0]
-    assert abs(s_star - 0.0053927) < 1e-6
+    # (the landings' own runs ask too, in their own parameter: 1.5e-6 .. 1.5e-3 by kernel)
+    (fold, *_) = [c for c in seen if c[1] == 0.0]
+    (on,) = [c for c in seen if abs(c[1] - 0.0053927) < 1e-6]
+    run, s_star, y_star, s_end = on
     psi = run.critical(y_star, s_star)[1]
     psi = psi / run.step_norm(psi)
     for off in (0.0, 1e-5, -1e-5, 3e-5, -3e-5):

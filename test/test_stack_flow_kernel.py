@@ -86,9 +86,20 @@ def test_a_track_with_compiled_flows_gives_the_numpy_tracks_answer(index):
 
 
 def test_without_numba_the_numpy_flows_run(monkeypatch):
-    """TENSEGRITY_NO_NUMBA: nothing compiles, compile_flows leaves the numpy flows."""
+    """TENSEGRITY_NO_NUMBA: nothing compiles, compile_flows leaves the numpy flows, and a
+    tolerance study's code fingerprint says so (a cluster's workers must agree on it: the
+    two round differently)."""
+    from tensegrity_ros.core.tolerance_questions import code_fingerprint
+    code_fingerprint.cache_clear()
+    with_numba, available = code_fingerprint(), stack_flow_kernel.engine() != 'numpy'
     monkeypatch.setenv('TENSEGRITY_NO_NUMBA', '1')
     monkeypatch.setattr(stack_flow_kernel, '_COMPILED', [])
+    code_fingerprint.cache_clear()
+    try:
+        assert stack_flow_kernel.engine() == 'numpy'
+        assert (code_fingerprint() != with_numba) == available
+    finally:
+        code_fingerprint.cache_clear()
     _, start, end, _ = paths(0, 9)[20]
     path = StackPath(start, end)
     path.compile_flows()

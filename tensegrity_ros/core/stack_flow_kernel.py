@@ -15,6 +15,7 @@ returns None and the numpy flows run.
 """
 from __future__ import annotations
 
+from importlib import metadata
 import os
 from types import SimpleNamespace
 
@@ -200,8 +201,20 @@ def compiled():
     return _COMPILED[0]
 
 
-def _compile():
+def engine():
+    """Which flows :func:`compiled` gives, without compiling: 'numba <version>', or
+    'numpy' (no numba, or TENSEGRITY_NO_NUMBA).  A cluster's workers must agree on it for
+    bit-identical answers (the compiled flows round differently)."""
     if os.environ.get('TENSEGRITY_NO_NUMBA', '') not in ('', '0'):
+        return 'numpy'
+    try:
+        return 'numba ' + metadata.version('numba')
+    except metadata.PackageNotFoundError:
+        return 'numpy'
+
+
+def _compile():
+    if engine() == 'numpy':
         return None
     try:
         from numba import njit

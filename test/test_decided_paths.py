@@ -192,3 +192,35 @@ def test_runs_away_from_a_branch_point_stop_lengthening_at_the_fold_they_meet(mo
     result = track_stack(start, end, settle_stack(start, theta), BUDGET)
     assert result.status == 'ok' and [j.kind for j in result.jumps] == ['fold']
     assert lengths and max(lengths) < 100.0, sorted(lengths)[-3:]
+
+
+# -- a small snap whose landing the released mechanism has already measured --------------------
+
+def test_a_snap_the_released_mechanism_measured_needs_no_closer_landing(monkeypatch):
+    """bench_neck_paths' seed 1 path 29 (a random N = 4 neck driven into a linkage limit)
+    folds at s = 0.998917 with a small snap (0.0087 rad; the reference's own flow from the
+    departure, frozen 1e-7 .. 1e-5 past, rests 0.0081-0.0086 rad from it and within 7e-6 ..
+    7e-4 of the landing: a finite move).  The mechanism released at the fold rests by the
+    landing as far at 1e-8 as at 1e-6 past it, so ``continuous`` says 'no' without a
+    landing 100 times closer (one rigid flow, ~50 ms); without that evidence the closer
+    landing says the same."""
+    from neck_path_families import paths
+    from tensegrity_ros.core.continuation import lander
+    asked, decide = [], lander.continuous
+
+    def spy(*args):
+        asked.append(args)
+        return decide(*args)
+    monkeypatch.setattr(lander, 'continuous', spy)
+    _, start, end, theta = paths(1, 9)[29]
+    result = track_stack(start, end, settle_stack(start, theta), BUDGET)
+    kinds = [(j.kind, round(j.s, 6)) for j in result.jumps]
+    assert kinds == [('branch_point', 0.55383), ('fold', 0.998917)]
+    (args,) = [a for a in asked if abs(a[2] - 0.998917) < 1e-6]
+    release = args[-1]
+    assert release is not None and not release.goes_on
+    closer = []
+    landing_state = lander.landing_state
+    monkeypatch.setattr(lander, 'landing_state', lambda *a: closer.append(a) or landing_state(*a))
+    assert decide(*args) is False and not closer
+    assert decide(*args[:-1], None) is False and closer

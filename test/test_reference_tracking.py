@@ -671,13 +671,13 @@ def test_a_branch_going_on_through_a_critical_point_is_told_from_the_points_own_
     a jump, whichever y*."""
     from tensegrity_ros.core.continuation import lander
     seen = []
-    decide = lander.released_rests_nearby
+    decide = lander.released
 
     def spy(run, s_star, y_star, s_end):
         seen.append((run, s_star, np.array(y_star), s_end))
         return decide(run, s_star, y_star, s_end)
 
-    monkeypatch.setattr(lander, 'released_rests_nearby', spy)
+    monkeypatch.setattr(lander, 'released', spy)
     start, end = fold_left_neck(1.0)
     assert [j.kind for j in track_stack(start, end, np.array(FOLD_LEFT_STATE)).jumps] == ['fold']
     # (the landings' own runs ask too, in their own parameter: 1.5e-6 .. 1.5e-3 by kernel)
@@ -687,13 +687,14 @@ def test_a_branch_going_on_through_a_critical_point_is_told_from_the_points_own_
     psi = run.critical(y_star, s_star)[1]
     psi = psi / run.step_norm(psi)
     for off in (0.0, 1e-5, -1e-5, 3e-5, -3e-5):
-        goes_on = decide(run, s_star, y_star + off * psi, s_end)
-        assert goes_on is not None, off
-        assert run.separation(goes_on[0], y_star) < 1e-4 and goes_on[1] > s_star
+        release = decide(run, s_star, y_star + off * psi, s_end)
+        assert release is not None and release.goes_on, off
+        assert run.separation(release.rest, y_star) < 1e-4 and release.s > s_star
     run, s_star, y_star, s_end = fold
     psi = run.critical(y_star, s_star)[1]
     for off in (0.0, 1e-5, -1e-5):
-        assert decide(run, s_star, y_star + off * psi / run.step_norm(psi), s_end) is None, off
+        release = decide(run, s_star, y_star + off * psi / run.step_norm(psi), s_end)
+        assert release is None or not release.goes_on, off
 
 
 # -- the nearly symmetric N = 3 neck of the issue -----------------------------------------------

@@ -9,6 +9,8 @@ A supercritical branch point is no jump at all (:mod:`.branch_switching`).
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 from . import ambiguity, indicators
 from .branch_switching import at_the_critical_point, follow_buckled
 from .flows import slide
@@ -31,14 +33,14 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
     buckled = follow_buckled(run, s_star, y_star, s_end)
     if buckled is not None:                 # supercritical: no jump, the state goes on
         return buckled
-    goes_on = released_rests_nearby(run, s_star, y_star, s_end)
-    if goes_on is not None:
-        return (*goes_on, None)
+    release = released(run, s_star, y_star, s_end)
+    if release is not None and release.goes_on:
+        return release.rest, release.s, None
     s_land = s_star + landing_offset(run, kind, y_star, s_star)
     if s_land > s_end and not admissible(run.problem, s_land):
         s_land = s_end
     landing, ambiguous, s_land = landing_state(run, kind, s_star, y_star, s_land, s_end, reach)
-    event = None if continuous(run, kind, s_star, y_star, s_land, landing) else kind
+    event = None if continuous(run, kind, s_star, y_star, s_land, landing, release) else kind
     ambiguous = ambiguous or ambiguity.mirror_lands_too(run, y_star, landing, s_land)
     if s_land > s_end:
         back = run.sub_run(s_land, s_end).run(landing)
@@ -73,22 +75,40 @@ RELEASE_LEASH = 4.0
 RELEASE_RATIO = 3.0
 
 
+class Release(NamedTuple):
+    """What the mechanism released at a critical state did (:func:`released`): where it
+    rests at the farther offset, and whether the branch goes on (closer at the closer)."""
+
+    rest: object
+    s: float
+    goes_on: bool
+
+
 def released_rests_nearby(run, s_star, y_star, s_end):
-    """(state, s) where the mechanism released at the critical state, the parameters
-    frozen 1e-8 and 1e-6 past it, comes to rest next to it, closer at the closer offset
-    (as a square root, or a line: the rests' distances at least 3 times apart): a
-    branch of minima goes on through the critical point, no jump; ``None`` elsewhere (a
-    jump lands as far at both).  The critical point is then a degenerate point of the
-    branch, not its end: a module passing close to its flat crossing (a random N = 7
-    neck, all actuators, the overdamped flow resting 1.1e-4, 3.5e-4, 1.1e-3 rad from the
-    departure at 1e-8 .. 1e-6 past by the reference's own model, where a step-off of
-    1e-2 along the critical mode slid 0.02 rad onto the crossing's other arm, a 'fold').
+    """(state, s) where the branch of minima goes on through the critical point (see
+    :func:`released`), else None."""
+    release = released(run, s_star, y_star, s_end)
+    return (release.rest, release.s) if release is not None and release.goes_on else None
+
+
+def released(run, s_star, y_star, s_end):
+    """Where the mechanism released at the critical state, the parameters frozen 1e-8
+    and 1e-6 past it, comes to rest (:class:`Release`; None where not next to it, within
+    one step bound, at both).  Closer at the closer offset (as a square root, or a line:
+    the rests' distances at least 3 times apart), a branch of minima goes on through the
+    critical point, no jump (``goes_on``); as far at both, a jump lands there.  The
+    critical point is then a degenerate point of the branch, not its end: a module
+    passing close to its flat crossing (a random N = 7 neck, all actuators, the
+    overdamped flow resting 1.1e-4, 3.5e-4, 1.1e-3 rad from the departure at 1e-8 ..
+    1e-6 past by the reference's own model, where a step-off of 1e-2 along the critical
+    mode slid 0.02 rad onto the crossing's other arm, a 'fold').
 
     Where the rests at 1e-8 and 1e-6 are not 3 times apart but the nearer is within
     ``passage_radius`` (the resolution of a state next to a critical point), the pair
     1e-6 and 1e-4 decides: the located critical state may be off along its soft mode by
-    as much as the nearer rest's distance (a neck landed from a fold onto a module 0.037 from flat,
-    Sandybridge kernel: rests 9.3e-6 and 1.2e-5 from y*, whose own error is ~1e-5)."""
+    as much as the nearer rest's distance (a neck landed from a fold onto a module 0.037
+    from flat, Sandybridge kernel: rests 9.3e-6 and 1.2e-5 from y*, whose own error is
+    ~1e-5)."""
     offsets = [offset for offset in RELEASE_OFFSETS if s_star + offset <= s_end]
     if len(offsets) < 2:
         return None
@@ -105,13 +125,11 @@ def released_rests_nearby(run, s_star, y_star, s_end):
     if rest_near is None:
         return None
     if far_by >= RELEASE_RATIO * near_by:
-        return rest_far, far
+        return Release(rest_far, far, True)
     if len(offsets) < 3 or near_by > run.settings.passage_radius:
-        return None             # (a move the located critical state's error cannot make)
+        return Release(rest_far, far, False)    # (a move y*'s own error cannot make)
     _, farther_by = _rest_nearby(run, y_star, s_star + offsets[2], leash)
-    if farther_by is None or not farther_by >= RELEASE_RATIO * far_by:
-        return None
-    return rest_far, far
+    return Release(rest_far, far, farther_by is not None and farther_by >= RELEASE_RATIO * far_by)
 
 
 def _rest_nearby(run, y_star, s, leash):
@@ -253,7 +271,7 @@ def _onward_decides(run, y_star, s_land, landing, distance):
     return None
 
 
-def continuous(run, kind, s_star, y_star, s_land, landing):
+def continuous(run, kind, s_star, y_star, s_land, landing, release=None):
     """Whether the landing is the tracked minimum going on rather than a jump.
 
     It is when the landing is the departure itself (rounding level), or when
@@ -273,6 +291,12 @@ def continuous(run, kind, s_star, y_star, s_land, landing):
     onward = _onward_decides(run, y_star, s_land, landing, distance)
     if onward is not None:
         return onward
+    if release is not None and run.separation(release.rest, landing) <= 0.3 * distance:
+        # the mechanism released at the critical state itself rests by the landing, as
+        # far at 1e-8 as at 1e-6 past it: the landing does not close in (the closer
+        # landing below measures the same; seed 1 path 29 of bench_neck_paths, a 0.0087
+        # rad snap at a fold next to a linkage limit: one rigid flow, ~50 ms, saved)
+        return False
     try:
         closer, _, _ = landing_state(run, kind, s_star, y_star, s_star + 0.01 * (s_land - s_star))
     except TrackingError:

@@ -84,11 +84,10 @@ def test_core_imports_only_core_the_standard_library_numpy_scipy():
         assert outside - sys.stdlib_module_names - {'__future__'} <= allowed, (name, outside)
 
 
-#: The modules that may compile (numba): the neck's equations of motion per evaluation,
-#: the live loop's inner loop, and the neck's elastic gradient flow, a batch question's
-#: (see their docstrings for the numpy figures).
-COMPILED = {'tensegrity_ros.core.neck_kernel': {'numba'},
-            'tensegrity_ros.core.stack_flow_kernel': {'numba'}}
+#: The one module that imports numba (numba_kernels): it compiles the kernels of the neck's
+#: equations of motion (the live loop's inner loop) and of its elastic gradient flow (a
+#: batch question's); see their docstrings for the numpy figures.
+COMPILED = {'tensegrity_ros.core.numba_kernels': {'numba'}}
 
 
 @pytest.mark.parametrize('tool', ['figures', 'problem', 'params_file', 'module_parameters'])

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from neck_path_families import paths
-from tensegrity_ros.core import stack_flow_kernel
+from tensegrity_ros.core import numba_kernels, stack_flow_kernel
 from tensegrity_ros.core.continuation import TrackerSettings
 from tensegrity_ros.core.stack import settle_stack, track_stack
 from tensegrity_ros.core.stack_flows import StackFlows
@@ -91,12 +91,12 @@ def test_without_numba_the_numpy_flows_run(monkeypatch):
     two round differently)."""
     from tensegrity_ros.core.tolerance_questions import code_fingerprint
     code_fingerprint.cache_clear()
-    with_numba, available = code_fingerprint(), stack_flow_kernel.engine() != 'numpy'
+    with_numba, available = code_fingerprint(), numba_kernels.engine() != 'numpy'
     monkeypatch.setenv('TENSEGRITY_NO_NUMBA', '1')
     monkeypatch.setattr(stack_flow_kernel, '_COMPILED', [])
     code_fingerprint.cache_clear()
     try:
-        assert stack_flow_kernel.engine() == 'numpy'
+        assert numba_kernels.engine() == 'numpy'
         assert (code_fingerprint() != with_numba) == available
     finally:
         code_fingerprint.cache_clear()

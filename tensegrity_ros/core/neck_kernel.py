@@ -25,10 +25,9 @@ of the constant mass matrix (:func:`accelerations`), solved by LAPACK.
 """
 from __future__ import annotations
 
-import os
-from types import SimpleNamespace
-
 import numpy as np
+
+from .numba_kernels import compile_kernels
 
 
 def ramp_at(t, rho0, rho1, duration):
@@ -275,17 +274,9 @@ def compiled():
 
 
 def _compile():
-    if os.environ.get('TENSEGRITY_NO_NUMBA', '') not in ('', '0'):
-        return None
-    try:
-        from numba import njit
-    except ImportError:
-        return None
-    found = globals()
-    for name in KERNELS:             # rebound here, so that callers compile against them
-        found[name] = njit(cache=True)(found[name])
-    kernels = SimpleNamespace(**{name: found[name] for name in KERNELS})
-    _warm_up(kernels)
+    kernels = compile_kernels(globals(), KERNELS)
+    if kernels is not None:
+        _warm_up(kernels)
     return kernels
 
 

@@ -15,11 +15,9 @@ returns None and the numpy flows run.
 """
 from __future__ import annotations
 
-from importlib import metadata
-import os
-from types import SimpleNamespace
-
 import numpy as np
+
+from .numba_kernels import compile_kernels
 
 
 def _cholesky(a, m):
@@ -201,26 +199,5 @@ def compiled():
     return _COMPILED[0]
 
 
-def engine():
-    """Which flows :func:`compiled` gives, without compiling: 'numba <version>', or
-    'numpy' (no numba, or TENSEGRITY_NO_NUMBA).  A cluster's workers must agree on it for
-    bit-identical answers (the compiled flows round differently)."""
-    if os.environ.get('TENSEGRITY_NO_NUMBA', '') not in ('', '0'):
-        return 'numpy'
-    try:
-        return 'numba ' + metadata.version('numba')
-    except metadata.PackageNotFoundError:
-        return 'numpy'
-
-
 def _compile():
-    if engine() == 'numpy':
-        return None
-    try:
-        from numba import njit
-    except ImportError:
-        return None
-    found = globals()
-    for name in KERNELS:             # rebound here, so that callers compile against them
-        found[name] = njit(cache=True)(found[name])
-    return SimpleNamespace(descent=found['descent'], damped=found['damped'])
+    return compile_kernels(globals(), KERNELS)

@@ -30,7 +30,7 @@ import time
 
 import numpy as np
 
-from . import branch_batch as bb, stack_flow_kernel, tolerance_batch as tb
+from . import branch_batch as bb, numba_kernels, tolerance_batch as tb
 from .continuation import TrackerSettings
 from .module import InvalidParameterError, ModuleParams, PARAMETER_NAMES, STANDARD_GRAVITY
 from .operation_range import operation_range
@@ -430,7 +430,7 @@ def code_fingerprint():
     """A digest of the core's source and of the neck flows' engine (numba's version, or
     numpy): the code every sample's answer comes from.  A cluster's workers must run the
     same (else the same seed could answer differently)."""
-    digest = hashlib.sha256(stack_flow_kernel.engine().encode())
+    digest = hashlib.sha256(numba_kernels.engine().encode())
     core = pathlib.Path(__file__).parent
     for path in sorted(core.rglob('*.py')):                 # core/continuation/ too
         digest.update(path.relative_to(core).as_posix().encode())

@@ -64,7 +64,7 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
 
 
 #: Where the mechanism released at a critical state is let come to rest (in s past it)
-#: to see whether it stays next to it (:func:`released_rests_nearby`): a pair, and the
+#: to see whether it stays next to it (:func:`released`): a pair, and the
 #: next decade out where the nearer offset's rest is lost in the critical state's error.
 RELEASE_OFFSETS = (1e-8, 1e-6, 1e-4)
 #: A released flow that goes farther than this many step bounds rests nowhere near (the
@@ -82,13 +82,6 @@ class Release(NamedTuple):
     rest: object
     s: float
     goes_on: bool
-
-
-def released_rests_nearby(run, s_star, y_star, s_end):
-    """(state, s) where the branch of minima goes on through the critical point (see
-    :func:`released`), else None."""
-    release = released(run, s_star, y_star, s_end)
-    return (release.rest, release.s) if release is not None and release.goes_on else None
 
 
 def released(run, s_star, y_star, s_end):

@@ -981,14 +981,18 @@ class ReferencePath:
     passages: list = field(default_factory=list)
 
 
-def quasi_static_path(system, theta, s0=0.0, s1=1.0) -> ReferencePath:
+def quasi_static_path(system, theta, s0=0.0, s1=1.0,
+                      max_motion=MAX_STEP_MOTION) -> ReferencePath:
     """Follow the overdamped mechanism from rest near ``theta`` at s0 to s1 (within the
-    work budget: :func:`work_budget`)."""
+    work budget: :func:`work_budget`).  ``max_motion``: a step that moves the mechanism
+    farther (rad) is split; a snap smaller than it can pass for the branch's own motion
+    where the branch moves fast (a fold's square root), so paths with small snaps (a
+    module under 1e-5 .. 1e-4 k L next to rho = L: 0.8 deg) need a finer one."""
     with work_budget():
-        return _quasi_static_path(system, theta, s0, s1)
+        return _quasi_static_path(system, theta, s0, s1, max_motion)
 
 
-def _quasi_static_path(system, theta, s0, s1):
+def _quasi_static_path(system, theta, s0, s1, max_motion=MAX_STEP_MOTION):
     y = settle_reference(system, theta, s0).state
     path = ReferencePath(final=y, start=y.copy())
     s, ds, slope = s0, FIRST_STEP, None
@@ -1017,7 +1021,7 @@ def _quasi_static_path(system, theta, s0, s1):
         # step of MIN_STEP that moves more than CLOSE_DISTANCE is looked at too: seed 0
         # stream 6's module 0 reached its flat crossing at s = 1 and the last step, 1.9e-9
         # long, took the 0.015 rad snap off it for the branch's own motion)
-        suspicious = motion > MAX_STEP_MOTION or (
+        suspicious = motion > max_motion or (
             slope is not None and motion > 3.0 * slope * (s_new - s) + 1e-6) or (
             slope is None and s_new - s <= MIN_STEP and motion > CLOSE_DISTANCE)
         if suspicious and s_new - s > MIN_STEP:
@@ -1038,7 +1042,7 @@ def _quasi_static_path(system, theta, s0, s1):
             continue
         slope = None if suspicious else motion / (s_new - s)
         s, y = s_new, rest.state
-        ds = min(MAX_STEP, 2.0 * ds) if motion < 0.25 * MAX_STEP_MOTION else ds
+        ds = min(MAX_STEP, 2.0 * ds) if motion < 0.25 * max_motion else ds
     snap = _snap_off_crossing(system, y, s1)
     if snap is not None:
         path.jumps.append(snap)

@@ -14,6 +14,7 @@ from typing import NamedTuple
 from . import ambiguity, indicators
 from .branch_switching import at_the_critical_point, follow_buckled
 from .flows import slide
+from .normal_form import branch_law, is_fold, TURNS_BACK
 from .problem import admissible
 from .results import Event, FOLD, TrackingError
 from .run_state import inf_norm
@@ -30,17 +31,22 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
     asymmetry of the mode ~1e6-fold: 4.9e-6 .. 2.6e-3 against branch_tol 1e-6 at
     config/neck.yaml's mirror-symmetric pitchforks 1e-4 in s before a module folds
     flat; true folds there: >= 4.5e-2)."""
-    buckled = follow_buckled(run, s_star, y_star, s_end)
-    if buckled is not None:                 # supercritical: no jump, the state goes on
-        return buckled
-    release = released(run, s_star, y_star, s_end)
-    if release is not None and release.goes_on:
-        return release.rest, release.s, None
+    law = branch_law(run, s_star, y_star, run.critical(y_star, s_star)[1])
+    turns_back = law.law == TURNS_BACK and is_fold(run, s_star, y_star, law)
+    release = None
+    if not turns_back:
+        buckled = follow_buckled(run, s_star, y_star, s_end)
+        if buckled is not None:             # supercritical: no jump, the state goes on
+            return buckled
+        release = released(run, s_star, y_star, s_end)
+        if release is not None and release.goes_on:
+            return release.rest, release.s, None
     s_land = s_star + landing_offset(run, kind, y_star, s_star)
     if s_land > s_end and not admissible(run.problem, s_land):
         s_land = s_end
     landing, ambiguous, s_land = landing_state(run, kind, s_star, y_star, s_land, s_end, reach)
-    event = None if continuous(run, kind, s_star, y_star, s_land, landing, release) else kind
+    event = kind if turns_back or not continuous(run, kind, s_star, y_star, s_land, landing,
+                                                 release) else None
     ambiguous = ambiguous or ambiguity.mirror_lands_too(run, y_star, landing, s_land)
     if s_land > s_end:
         back = run.sub_run(s_land, s_end).run(landing)
@@ -52,7 +58,8 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
     if event is None:
         return landing, s_land, None
     at_event, s_at = landing_at_event(run, landing, s_land, s_star)
-    if s_at == s_star and run.separation(at_event, y_star) <= run.settings.passage_radius:
+    if (not turns_back and s_at == s_star
+            and run.separation(at_event, y_star) <= run.settings.passage_radius):
         # the landing minimum, followed back to s*, is the departure: one branch of
         # minima runs through the critical point, no jump (the N = 10 paper neck with
         # a 1e-9 asymmetry under a head load: lambda_min dips to 4e-11 of lambda_max on

@@ -98,6 +98,11 @@ def critical_point(run, test, point, a, b):
     if found is None:
         return None
     y_star, s_star = found
+    if not run.residual_ok(y_star, s_star):
+        # not an equilibrium at s*: the neighbour a lost root fell back on, moved in s
+        # only (a module landed 4e-5 in rho past rho = L under a 1e-6 N load: its arc
+        # steps back met such a 'fold', the state 1e-6 N out of balance)
+        return None
     lam, psi = run.critical(y_star, s_star)
     if abs(lam) > run.settings.critical_tol:
         return None

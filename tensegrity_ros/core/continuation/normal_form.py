@@ -1,0 +1,185 @@
+"""The branch through a located critical point, measured along its critical mode.
+
+Near a critical point the equilibria on the hyperplane psi . (y - y*) = a lie at
+
+    s - s* = sigma0 + c1 a + c2 a^2 + c3 a^3 + ...
+
+(the reduced equation's solution curve; MATCONT's and BifurcationKit's normal forms).
+sigma0 is where the curve crosses the hyperplane through y* itself: not 0 where y* is
+not exactly on the branch (next to a fold whose F_s is small the residual test passes
+~1e-7 in s past it: the module under a 1e-6 N load next to rho = L).  Both sides +-a at
+two amplitudes a factor 4 apart give all three (:func:`_fit`); the fit is taken where
+two such pairs predict s - s* at their common amplitude to :data:`LAW_AGREEMENT` of its
+size.  Larger amplitudes may reach another branch (the module under a 2e-5 N load next
+to rho = L: at 0.014 rad along -psi the corrector landed on the other minimum, past a
+fold whose own branch lies 5.8e-5 in s behind).  The curve's vertex (its s-extremum)
+lies at a = -c1 / (2 c2); what the law says:
+
+* ``turns_back``: the vertex lies within the amplitudes measured and c2 < 0: the
+  branch through the point lies behind its vertex on both sides.  Either a fold (c1,
+  sigma0 only y*'s own error) or the bifurcated branch of a branch point lying behind;
+* ``ahead``: the vertex within them and c2 > 0: a bifurcated branch past s* (a
+  supercritical pitchfork where it is stable; :mod:`.branch_switching` checks that);
+* ``through``: the vertex farther out: the branch crosses s* monotonically (a
+  transcritical branch point, or a dip of lambda_min that is no critical point);
+* ``unresolved``: no two pairs agree before s - s* sinks into rounding, or the
+  corrector does not converge (a linkage limit): the caller decides otherwise.
+
+``turns_back`` is a fold only where no other branch runs through the point: at a branch
+point the branch across the mode (the unbuckled one) may go on past s* and be stable
+(two mirror minima merging into the flat state, a supercritical pitchfork run
+backwards: the unloaded module with L2 = 1.5 at rho = 1/4).  :func:`is_fold` tells them
+apart by the reduced equation g(xi, sigma) itself (see there).
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from .correctors import arc_point
+
+TURNS_BACK = 'turns_back'
+AHEAD = 'ahead'
+THROUGH = 'through'
+UNRESOLVED_LAW = 'unresolved'
+
+#: Two fits (amplitude pairs a factor 4 apart) agree where their predictions of s - s*
+#: at the common amplitude differ by at most this fraction of it: the fits' error
+#: shrinks 16-fold per level (the next terms are O(a^2) relative).
+LAW_AGREEMENT = 0.1
+#: Amplitude levels tried, each a factor 4 below the one before (from the step-off).
+LAW_LEVELS = 10
+#: A measured s - s* must exceed this (relative to max(1, |s*|)) to count: the
+#: locator's bracket and s's rounding are ~1e-12.
+LAW_RESOLUTION = 1e-10
+#: The fold test's ratio (:func:`is_fold`) is 1 at a fold and 1/3 at a pitchfork: a fold
+#: where it lies within this factor of 1.
+FOLD_RATIO = 2.0
+
+
+class BranchLaw(NamedTuple):
+    """The branch through a critical point along its mode (see the module's doc):
+    s - s* = sigma0 + linear a + quadratic a^2 for amplitudes up to ``amplitude``."""
+
+    law: str
+    linear: float = 0.0
+    quadratic: float = 0.0
+    amplitude: float = 0.0
+    sigma0: float = 0.0
+
+
+def _sides(run, s_star, y_star, direction, a):
+    """(s - s* at +a, at -a), or None where a corrector is lost."""
+    plus = arc_point(run, y_star, s_star, direction, a, any_s=True)
+    if plus is None:
+        return None
+    minus = arc_point(run, y_star, s_star, -direction, a, any_s=True)
+    if minus is None:
+        return None
+    return plus[1] - s_star, minus[1] - s_star
+
+
+def _fit(outer, inner):
+    """(sigma0, c1, c2) from the sides at amplitudes a (outer) and a / 4 (inner), each
+    (a, s+ - s*, s- - s*): the even parts give sigma0 and c2, the inner odd part c1."""
+    (a, p, m), (b, q, n) = outer, inner
+    even_a, even_b = 0.5 * (p + m), 0.5 * (q + n)
+    c2 = (even_a - even_b) / (a * a - b * b)
+    return even_b - c2 * b * b, (q - n) / (2.0 * b), c2
+
+
+def _agree(coarse, fine, a):
+    """Whether two fits predict s - s* at +-a (relative to sigma0) alike."""
+    def predicted(fit, side):
+        _, c1, c2 = fit
+        return c1 * side + c2 * side * side
+    sizes = [abs(predicted(fine, side)) for side in (a, -a)]
+    return all(abs(predicted(coarse, side) - predicted(fine, side))
+               <= LAW_AGREEMENT * max(sizes) for side in (a, -a)) and max(sizes) > 0.0
+
+
+def branch_law(run, s_star, y_star, psi, amplitude=None):
+    """The :class:`BranchLaw` of the branch through (y*, s*) along psi."""
+    a = (run.settings.step_off if amplitude is None else amplitude) / max(
+        run.step_norm(psi), 1e-300)
+    direction = np.append(psi, 0.0)
+    floor = LAW_RESOLUTION * max(1.0, abs(s_star))
+    levels, fits = [], []
+    for _ in range(LAW_LEVELS):
+        sides = _sides(run, s_star, y_star, direction, a)
+        if sides is None:
+            levels, fits = [], []
+        elif max(map(abs, sides)) <= floor:
+            break
+        else:
+            levels.append((a, *sides))
+            if len(levels) >= 2:
+                fits.append(_fit(levels[-2], levels[-1]))
+            if len(fits) >= 2 and _agree(fits[-2], fits[-1], levels[-2][0]):
+                return _verdict(fits[-1], levels[-3][0])
+        a *= 0.25
+    return BranchLaw(UNRESOLVED_LAW)
+
+
+def _verdict(fit, reach):
+    """The law of the fit, measured up to the amplitude ``reach``."""
+    sigma0, c1, c2 = fit
+    if abs(c1) > 2.0 * abs(c2) * reach:          # the vertex lies farther out
+        return BranchLaw(THROUGH, c1, c2, reach, sigma0)
+    return BranchLaw(TURNS_BACK if c2 < 0.0 else AHEAD, c1, c2, reach, sigma0)
+
+
+def _bordered_residual(run, y_star, s, u, v, h):
+    """beta of the bordered system {F(y, s) + beta u = 0, v . (y - y*) = h} from y*: the
+    reduced equation's value at amplitude h (regular at a simple critical point), or
+    None where Newton does not converge."""
+    n = y_star.size
+    y, beta = y_star + h * v, 0.0
+    matrix = np.zeros((n + 1, n + 1))
+    matrix[:n, n], matrix[n, :n] = u, v
+    for _ in range(run.settings.newton_iterations):
+        matrix[:n, :n] = run.problem.jacobian(y, s)
+        rhs = np.append(run.problem.residual(y, s) + beta * u, v @ (y - y_star) - h)
+        try:
+            update = np.linalg.solve(matrix, rhs)
+        except np.linalg.LinAlgError:
+            return None
+        y, beta = y - update[:n], beta - update[n]
+        if run.step_norm(update[:n]) <= 1e-14 * (1.0 + run.step_norm(y)):
+            return beta
+    return None
+
+
+def is_fold(run, s_star, y_star, law):
+    """Whether the ``turns_back`` critical point (y*, s*) is a fold, by the reduced
+    equation g on the critical mode: ``beta`` of the bordered system (u, v the
+    Jacobian's null vectors at y*), at y*'s hyperplane moved by h = a / 4 either way and
+    at s* + sigma, sigma = |c2| h^2 (the law's c2):
+
+        ratio = [g(0, sigma) - g(0, 0)] / [(g(h, 0) + g(-h, 0)) / 2 - g(0, 0)]
+
+    A fold, g = g_s (s - s_f) + g_xx (xi - xi_f)^2 / 2 with c2 = -g_xx / (2 g_s): ratio 1
+    exactly, wherever y* lies.  A branch point the law's branch of which turns back,
+    g = g_xs xi (s - s_b) + g_xxx xi^3 / 6 with c2 = -g_xxx / (6 g_xs): ratio 1/3 for
+    y*'s offset xi0 along the mode below h ((h^2 + xi0^2) / (3 h^2 + xi0^2) in all).
+    A fold where the ratio lies within FOLD_RATIO of 1; False (not decided here)
+    elsewhere."""
+    try:
+        u_all, _, vt = np.linalg.svd(run.problem.jacobian(y_star, s_star))
+    except np.linalg.LinAlgError:
+        return False
+    u, v = u_all[:, -1], vt[-1]
+    h = 0.25 * law.amplitude
+    s_past = s_star + abs(law.quadratic) * h * h
+    if not s_past > s_star:
+        return False
+    at = _bordered_residual(run, y_star, s_star, u, v, 0.0)
+    past = _bordered_residual(run, y_star, s_past, u, v, 0.0)
+    sides = [_bordered_residual(run, y_star, s_star, u, v, side) for side in (h, -h)]
+    if at is None or past is None or None in sides:
+        return False
+    curvature = 0.5 * (sides[0] + sides[1]) - at
+    if curvature == 0.0:
+        return False
+    return bool(1.0 / FOLD_RATIO <= (past - at) / curvature <= FOLD_RATIO)

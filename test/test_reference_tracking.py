@@ -668,7 +668,8 @@ def test_a_branch_going_on_through_a_critical_point_is_told_from_the_points_own_
     'branch_point' was listed).  With y* moved 1e-5 .. 3e-5 along the mode, both rests
     are that far; the rest at 1e-4 past (8e-4 away) still shows the branch going on.
     At the fold itself (s = 0) the released mechanism rests 1.2e-4 away at every offset:
-    a jump, whichever y*."""
+    a jump, whichever y* (where the branch's law leaves it to the landing; it decides
+    that fold itself on most kernels: :mod:`.normal_form`)."""
     from tensegrity_ros.core.continuation import lander
     seen = []
     decide = lander.released
@@ -681,7 +682,7 @@ def test_a_branch_going_on_through_a_critical_point_is_told_from_the_points_own_
     start, end = fold_left_neck(1.0)
     assert [j.kind for j in track_stack(start, end, np.array(FOLD_LEFT_STATE)).jumps] == ['fold']
     # (the landings' own runs ask too, in their own parameter: 1.5e-6 .. 1.5e-3 by kernel)
-    (fold, *_) = [c for c in seen if c[1] == 0.0]
+    folds = [c for c in seen if c[1] == 0.0]     # (none where the branch's law decides it)
     (on,) = [c for c in seen if abs(c[1] - 0.0053927) < 1e-6]
     run, s_star, y_star, s_end = on
     psi = run.critical(y_star, s_star)[1]
@@ -690,7 +691,9 @@ def test_a_branch_going_on_through_a_critical_point_is_told_from_the_points_own_
         release = decide(run, s_star, y_star + off * psi, s_end)
         assert release is not None and release.goes_on, off
         assert run.separation(release.rest, y_star) < 1e-4 and release.s > s_star
-    run, s_star, y_star, s_end = fold
+    if not folds:
+        return
+    run, s_star, y_star, s_end = folds[0]
     psi = run.critical(y_star, s_star)[1]
     for off in (0.0, 1e-5, -1e-5):
         release = decide(run, s_star, y_star + off * psi / run.step_norm(psi), s_end)

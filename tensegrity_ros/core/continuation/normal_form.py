@@ -38,6 +38,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .correctors import arc_point
+from .. import bounded_work
 
 TURNS_BACK = 'turns_back'
 AHEAD = 'ahead'
@@ -107,6 +108,7 @@ def branch_law(run, s_star, y_star, psi, amplitude=None):
     floor = LAW_RESOLUTION * max(1.0, abs(s_star))
     levels, fits = [], []
     for _ in range(LAW_LEVELS):
+        bounded_work.checkpoint()       # (a time budget is checked between levels)
         sides = _sides(run, s_star, y_star, direction, a)
         if sides is None:
             levels, fits = [], []
@@ -138,6 +140,7 @@ def _bordered_residual(run, y_star, s, u, v, h):
     y, beta = y_star + h * v, 0.0
     matrix = np.zeros((n + 1, n + 1))
     matrix[:n, n], matrix[n, :n] = u, v
+    bounded_work.checkpoint()
     for _ in range(run.settings.newton_iterations):
         matrix[:n, :n] = run.problem.jacobian(y, s)
         rhs = np.append(run.problem.residual(y, s) + beta * u, v @ (y - y_star) - h)

@@ -85,29 +85,46 @@ def pinned_newton(run, y, s):
     exists next to y).  (H30, issue 30: within ~1.5e-9 in s of the perfect N = 3 chord
     ramp's branch point Newton's update along the soft mode is rounding over lambda_min
     and every natural probe was lost.)"""
-    problem = run.problem
-    try:
-        u_all, _, vt = np.linalg.svd(problem.jacobian(y, s))
-    except np.linalg.LinAlgError:
+    u, v = null_vectors(run, y, s)
+    if u is None:
         return None
-    u, v, n = u_all[:, -1], vt[-1], y.size
+    found = bordered_newton(run, y, s, u, v)
+    return found[0] if found is not None and run.residual_ok(found[0], s) else None
+
+
+def null_vectors(run, y, s):
+    """(u, v): the Jacobian's left and right singular vectors of its smallest singular
+    value at (y, s), or (None, None) where the SVD fails."""
+    try:
+        u_all, _, vt = np.linalg.svd(run.problem.jacobian(y, s))
+    except np.linalg.LinAlgError:
+        return None, None
+    return u_all[:, -1], vt[-1]
+
+
+def bordered_newton(run, y, s, u, v, offset=0.0):
+    """Newton on the bordered system {F(x, s) + beta u = 0, v . (x - y) = offset} from
+    y + offset v, regular where the Jacobian is singular along v: (x, beta, converged)
+    where it stops (its update at rounding level: ``converged``; or no longer
+    contracting), or None where a solve fails."""
+    problem, n = run.problem, y.size
     matrix = np.zeros((n + 1, n + 1))
     matrix[:n, n], matrix[n, :n] = u, v
-    x, beta, previous = np.array(y, dtype=float), 0.0, math.inf
+    x, beta, previous = np.array(y, dtype=float) + offset * v, 0.0, math.inf
     for _ in range(run.settings.newton_iterations):
         matrix[:n, :n] = problem.jacobian(x, s)
-        rhs = np.append(problem.residual(x, s) + beta * u, v @ (x - y))
+        rhs = np.append(problem.residual(x, s) + beta * u, v @ (x - y) - offset)
         try:
             delta = np.linalg.solve(matrix, rhs)
         except np.linalg.LinAlgError:
             return None
         size = inf_norm(delta[:n])
         if not math.isfinite(size) or size > 0.5 * previous + 1e-15:
-            break
+            return x, beta, False
         x, beta, previous = x - delta[:n], beta - delta[n], size
         if size <= 1e-14 * (1.0 + inf_norm(x)):
-            break
-    return x if run.residual_ok(x, s) else None
+            return x, beta, True
+    return x, beta, False
 
 
 def solve_branch_point(run, y, s):

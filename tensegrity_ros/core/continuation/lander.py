@@ -24,17 +24,18 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
     """Where the mechanism goes after the critical point: (state, s, event or None).
 
     If "just past" lies beyond the end of the command, the landed state is followed
-    back along its own branch to the end point.  Tried at a fold too, the buckled
-    branch: its branch turns back at s*, so no state along its mode lies past s*
+    back along its own branch to the end point.  A fold the branch's law certifies
+    (:mod:`.normal_form`) is a jump wherever it lands.  Elsewhere, tried at a fold
+    too, the buckled branch: its branch turns back at s*, so no state along its mode lies past s*
     there; where one does, the point was a branch point whose fold test |psi . F_s| is
     ill-conditioned (next to a linkage limit a chord's multiplier amplifies a 1e-5
     asymmetry of the mode ~1e6-fold: 4.9e-6 .. 2.6e-3 against branch_tol 1e-6 at
     config/neck.yaml's mirror-symmetric pitchforks 1e-4 in s before a module folds
     flat; true folds there: >= 4.5e-2)."""
     law = branch_law(run, s_star, y_star, run.critical(y_star, s_star)[1])
-    turns_back = law.law == TURNS_BACK and is_fold(run, s_star, y_star, law)
+    fold = law.law == TURNS_BACK and is_fold(run, s_star, y_star, law)
     release = None
-    if not turns_back:
+    if not fold:                            # (a fold is a jump, however close it lands)
         buckled = follow_buckled(run, s_star, y_star, s_end)
         if buckled is not None:             # supercritical: no jump, the state goes on
             return buckled
@@ -45,8 +46,8 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
     if s_land > s_end and not admissible(run.problem, s_land):
         s_land = s_end
     landing, ambiguous, s_land = landing_state(run, kind, s_star, y_star, s_land, s_end, reach)
-    event = kind if turns_back or not continuous(run, kind, s_star, y_star, s_land, landing,
-                                                 release) else None
+    event = kind if fold or not continuous(run, kind, s_star, y_star, s_land, landing,
+                                           release) else None
     ambiguous = ambiguous or ambiguity.mirror_lands_too(run, y_star, landing, s_land)
     if s_land > s_end:
         back = run.sub_run(s_land, s_end).run(landing)
@@ -58,7 +59,7 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
     if event is None:
         return landing, s_land, None
     at_event, s_at = landing_at_event(run, landing, s_land, s_star)
-    if (not turns_back and s_at == s_star
+    if (not fold and s_at == s_star
             and run.separation(at_event, y_star) <= run.settings.passage_radius):
         # the landing minimum, followed back to s*, is the departure: one branch of
         # minima runs through the critical point, no jump (the N = 10 paper neck with

@@ -37,7 +37,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .correctors import arc_point
+from .correctors import arc_point, bordered_newton, null_vectors
 from .. import bounded_work
 
 TURNS_BACK = 'turns_back'
@@ -133,25 +133,12 @@ def _verdict(fit, reach):
 
 
 def _bordered_residual(run, y_star, s, u, v, h):
-    """beta of the bordered system {F(y, s) + beta u = 0, v . (y - y*) = h} from y*: the
-    reduced equation's value at amplitude h (regular at a simple critical point), or
-    None where Newton does not converge."""
-    n = y_star.size
-    y, beta = y_star + h * v, 0.0
-    matrix = np.zeros((n + 1, n + 1))
-    matrix[:n, n], matrix[n, :n] = u, v
+    """beta of the bordered system {F(y, s) + beta u = 0, v . (y - y*) = h} (the reduced
+    equation's value at amplitude h, regular at a simple critical point), or None where
+    its Newton does not converge."""
     bounded_work.checkpoint()
-    for _ in range(run.settings.newton_iterations):
-        matrix[:n, :n] = run.problem.jacobian(y, s)
-        rhs = np.append(run.problem.residual(y, s) + beta * u, v @ (y - y_star) - h)
-        try:
-            update = np.linalg.solve(matrix, rhs)
-        except np.linalg.LinAlgError:
-            return None
-        y, beta = y - update[:n], beta - update[n]
-        if run.step_norm(update[:n]) <= 1e-14 * (1.0 + run.step_norm(y)):
-            return beta
-    return None
+    found = bordered_newton(run, y_star, s, u, v, h)
+    return found[1] if found is not None and found[2] else None
 
 
 def is_fold(run, s_star, y_star, law):
@@ -168,11 +155,9 @@ def is_fold(run, s_star, y_star, law):
     y*'s offset xi0 along the mode below h ((h^2 + xi0^2) / (3 h^2 + xi0^2) in all).
     A fold where the ratio lies within FOLD_RATIO of 1; False (not decided here)
     elsewhere."""
-    try:
-        u_all, _, vt = np.linalg.svd(run.problem.jacobian(y_star, s_star))
-    except np.linalg.LinAlgError:
+    u, v = null_vectors(run, y_star, s_star)
+    if u is None:
         return False
-    u, v = u_all[:, -1], vt[-1]
     h = 0.25 * law.amplitude
     s_past = s_star + abs(law.quadratic) * h * h
     if not s_past > s_star:

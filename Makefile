@@ -50,6 +50,10 @@ test: $(STAMP)
 # machine (NPY_DISABLE_CPU_FEATURES).  Each config: <OPENBLAS_CORETYPE>:<numpy features
 # off, comma-separated, or ->.  All must pass; the summary names the configs that failed.
 # (x86-64 with AVX2 runs the first four; elsewhere only this machine's own arithmetic.)
+# A config whose arithmetic is this machine's own (OpenBLAS picks that core here and the
+# features it turns off are absent: tools/same_arithmetic.py) repeats what `make test` ran
+# and is skipped, with a line saying so (only when the caller set neither variable, so that
+# make test did run on this machine's own arithmetic); NUMERICS_REPEATS=1 runs it anyway.
 NUMPY_AVX2 := X86_V4,AVX512_ICL,AVX512_SPR
 NUMPY_SSE := X86_V3,$(NUMPY_AVX2)
 ifeq ($(shell uname -m),x86_64)
@@ -59,15 +63,19 @@ else
 NUMERICS_CONFIGS ?= $(OPENBLAS_CORETYPE):-
 endif
 test-numerics: $(STAMP)
-	@failed=; for config in $(NUMERICS_CONFIGS); do \
+	@failed=; ran=; for config in $(NUMERICS_CONFIGS); do \
 	  core=$${config%%:*}; off=$${config#*:}; [ "$$off" = - ] && off=; \
+	  if [ -z "$(NUMERICS_REPEATS)$${OPENBLAS_CORETYPE}$${NPY_DISABLE_CPU_FEATURES}" ] && env -u OPENBLAS_CORETYPE -u NPY_DISABLE_CPU_FEATURES \
+	      $(PY) tools/same_arithmetic.py $$core $${off:--}; then \
+	    echo "== test-numerics: $$config skipped: this machine's own arithmetic, which make test ran"; \
+	    continue; fi; \
 	  echo "== test-numerics: OPENBLAS_CORETYPE=$$core NPY_DISABLE_CPU_FEATURES=$$off"; \
 	  $(TEST_ENV) OPENBLAS_CORETYPE=$$core NPY_DISABLE_CPU_FEATURES=$$off \
 	    $(PY) -m pytest $(XDIST) -m numerics -p no:cacheprovider $(PYTEST_ARGS) \
-	    || failed="$$failed $$config"; \
+	    || failed="$$failed $$config"; ran="$$ran $$config"; \
 	done; \
 	if [ -n "$$failed" ]; then echo "test-numerics FAILED under:$$failed"; exit 1; fi; \
-	echo "test-numerics: all configs passed: $(NUMERICS_CONFIGS)"
+	echo "test-numerics: all configs passed:$$ran"
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do $(PY) $$b || exit 1; done

@@ -14,7 +14,7 @@ from typing import NamedTuple
 from . import ambiguity, indicators
 from .branch_switching import at_the_critical_point, follow_buckled
 from .flows import slide
-from .normal_form import branch_law, is_fold, TURNS_BACK
+from .normal_form import branch_law, goes_through, is_fold, TURNS_BACK
 from .problem import admissible
 from .results import Event, FOLD, TrackingError
 from .run_state import inf_norm
@@ -35,6 +35,9 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
     law = branch_law(run, s_star, y_star, run.critical(y_star, s_star)[1])
     fold = law.law == TURNS_BACK and is_fold(run, s_star, y_star, law)
     release = None
+    through = None if fold else goes_through(run, s_star, y_star, law, s_end)
+    if through is not None:                 # the branch crosses s* and stays stable
+        return (*through, None)
     if not fold:                            # (a fold is a jump, however close it lands)
         buckled = follow_buckled(run, s_star, y_star, s_end)
         if buckled is not None:             # supercritical: no jump, the state goes on

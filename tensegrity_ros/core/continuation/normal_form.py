@@ -171,3 +171,50 @@ def is_fold(run, s_star, y_star, law):
     if curvature == 0.0:
         return False
     return bool(1.0 / FOLD_RATIO <= (past - at) / curvature <= FOLD_RATIO)
+
+
+#: A state past a ``through`` point counts as stable where lambda_min exceeds this many
+#: definiteness tolerances of lambda_max (as a buckled branch's, :mod:`.branch_switching`).
+THROUGH_MARGIN = 100.0
+#: Amplitude doublings tried from the law's reach before lambda_min shows that margin.
+THROUGH_DOUBLINGS = 8
+
+
+def goes_through(run, s_star, y_star, law, s_end):
+    """The stable state on the branch past a ``through`` point: (y, s) with s* < s <=
+    s_end, or None (the caller decides otherwise).
+
+    A ``through`` law says the branch crosses s* monotonically (a dip of lambda_min that
+    is no critical point: an imperfect pitchfork's connected branch, lambda_min down to
+    ~1e-11 of lambda_max on a nearly symmetric paper neck under a head load).  Where the
+    state on it past s* is a minimum with a margin, the minimum goes on: no jump, and no
+    flow is needed to say so (such a branch moves ~0.1 rad in 1e-6 of s, out of reach of
+    a frozen flow's rest test).  The side is the one the law's linear term takes forward
+    in s; the amplitude starts at the law's reach and doubles until the state is clearly
+    stable, each point checked to lie on the law where the law was measured."""
+    if law.law != THROUGH or law.linear == 0.0:
+        return None
+    _, psi = run.critical(y_star, s_star)
+    direction = np.append(np.sign(law.linear) * psi, 0.0)
+    a = law.amplitude
+    for doubling in range(THROUGH_DOUBLINGS):
+        bounded_work.checkpoint()
+        found = arc_point(run, y_star, s_star, direction, a, any_s=True)
+        if found is None or not found[1] > s_star:
+            return None
+        y, s = found
+        if doubling == 0 and not _on_the_law(law, a * np.sign(law.linear), s - s_star):
+            return None
+        eigenvalues = run.eigenvalues(y, s)
+        if eigenvalues[0] < 0.0 or s > s_end:
+            return None
+        if eigenvalues[0] > THROUGH_MARGIN * run.settings.definiteness_tol * abs(eigenvalues[-1]):
+            return y, s
+        a *= 2.0
+    return None
+
+
+def _on_the_law(law, a, past):
+    """Whether s - s* = ``past`` at amplitude ``a`` is the law's to LAW_AGREEMENT."""
+    predicted = law.sigma0 + law.linear * a + law.quadratic * a * a
+    return abs(past - predicted) <= LAW_AGREEMENT * abs(predicted - law.sigma0)

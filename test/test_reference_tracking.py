@@ -538,7 +538,7 @@ def same_landing(system, mine, theirs):
         return False
     try:
         moved = flow_to_rest(system, np.asarray(theirs.landing, dtype=float), s_mine).state
-    except RuntimeError:                    # (NoRest, Stalled: no such minimum there)
+    except (RuntimeError, np.linalg.LinAlgError):   # (NoRest, Stalled: no minimum there)
         return False
     return angle_distance(landing, np.ravel(moved)[:landing.size]) <= LANDING_TOL
 

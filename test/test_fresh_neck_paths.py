@@ -87,15 +87,15 @@ def compare(start, end, theta):
     got = track_stack(start, end, theta)
     system = NeckSystem(start.modules, end.modules)
     try:
-        with work_budget(REFERENCE_BUDGET):
+        with work_budget(REFERENCE_BUDGET):     # (the reference's every call on the path)
             ref = quasi_static_path(system, np.ravel(theta), max_motion=MOTION)
+            for mine, theirs in zip(sorted(got.jumps, key=lambda j: j.s), ref.jumps):
+                if the_node_model_lands_with_the_tracker(start, end, mine, theirs):
+                    theirs.alternatives.append(np.ravel(mine.to_theta))
+            ref = on_either_side(system, got, ref, assert_same_neck_path)
     except Undecided as why:
         print(f'not compared: {why}')
         return 0
-    for mine, theirs in zip(sorted(got.jumps, key=lambda j: j.s), ref.jumps):
-        if the_node_model_lands_with_the_tracker(start, end, mine, theirs):
-            theirs.alternatives.append(np.ravel(mine.to_theta))
-    ref = on_either_side(system, got, ref, assert_same_neck_path)
     assert_same_passages([p.s for p in got.passages], ref)
     return 1
 

@@ -30,7 +30,8 @@ import pytest
 
 from neck_path_families import _random_end, random_neck
 from node_spring_flow import NodeSpringNeck, rest_point
-from reference_paths import angle_distance, NeckSystem, quasi_static_path, Undecided, work_budget
+from reference_paths import (angle_distance, FIELDS, NeckSystem, quasi_static_path, Undecided,
+                             work_budget)
 from tensegrity_ros.core import ModuleParams
 from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
 from test_reference_tracking import assert_same_neck_path, assert_same_passages, on_either_side
@@ -80,9 +81,7 @@ def test_a_fold_the_whole_command_steps_over_is_reported():
     tracker reports on the command ending at s = 0.23377 is missing from the whole
     command's jumps; the reference and the node model see it."""
     *_, (_, start, end, theta) = fresh_paths(6)
-    short = Stack(tuple(a.with_(rho=a.rho + 0.23377 * (b.rho - a.rho))
-                        for a, b in zip(start.modules, end.modules)))
-    (fold,) = track_stack(start, short, theta).jumps
+    (fold,) = track_stack(start, stack_at(start, end, 0.23377), theta).jumps
     assert abs(fold.s * 0.23377 - 0.2337659687) < 1e-9   # (s of the whole command)
     assert len(track_stack(start, end, theta).jumps) == 1
 
@@ -108,6 +107,14 @@ def test_a_chord_driving_a_module_through_its_flat_crossing_lands_as_the_node_mo
     assert compare(start, end, theta) == 1
     (jump,) = track_stack(start, end, theta).jumps
     assert abs(jump.s - 0.7511206865) < 1e-9
+
+
+def stack_at(start, end, s):
+    """The command's stack at s: every parameter linear in s, as along the tracker's path."""
+    def value(a, b, name):
+        return getattr(a, name) + s * (getattr(b, name) - getattr(a, name))
+    return Stack(tuple(a.with_(**{name: value(a, b, name) for name in FIELDS})
+                       for a, b in zip(start.modules, end.modules)))
 
 
 def compare(start, end, theta):
@@ -137,12 +144,7 @@ def the_node_model_lands_with_the_tracker(start, end, mine, theirs):
     landing = np.ravel(mine.to_theta)
     if angle_distance(landing, theirs.landing) <= 1e-4:
         return False                    # (the same landing: nothing to decide)
-    s = mine.s + FREEZE
-    modules = [a.with_(rho=a.rho + s * (b.rho - a.rho), f3y=a.f3y + s * (b.f3y - a.f3y),
-                       f4y=a.f4y + s * (b.f4y - a.f4y), f3x=a.f3x + s * (b.f3x - a.f3x),
-                       f4x=a.f4x + s * (b.f4x - a.f4x))
-               for a, b in zip(start.modules, end.modules)]
-    past = NodeSpringNeck(modules, STIFFNESS)
+    past = NodeSpringNeck(stack_at(start, end, mine.s + FREEZE).modules, STIFFNESS)
     rest = np.ravel(rest_point(past, past, past.coordinates(mine.from_theta, 'node'),
                                'node').theta)
     to_mine, to_theirs = angle_distance(rest, landing), angle_distance(rest, theirs.landing)

@@ -195,7 +195,8 @@ def goes_through(run, s_star, y_star, law, s_end):
     if law.law != THROUGH or law.linear == 0.0:
         return None
     _, psi = run.critical(y_star, s_star)
-    direction = np.append(np.sign(law.linear) * psi, 0.0)
+    forward = np.sign(law.linear)
+    direction = np.append(forward * psi, 0.0)
     a = law.amplitude
     for doubling in range(THROUGH_DOUBLINGS):
         bounded_work.checkpoint()
@@ -203,7 +204,7 @@ def goes_through(run, s_star, y_star, law, s_end):
         if found is None or not found[1] > s_star:
             return None
         y, s = found
-        if doubling == 0 and not _on_the_law(law, a * np.sign(law.linear), s - s_star):
+        if doubling == 0 and not _on_the_law(law, forward * a, s - s_star):
             return None
         eigenvalues = run.eigenvalues(y, s)
         if eigenvalues[0] < 0.0 or s > s_end:

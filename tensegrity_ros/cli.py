@@ -41,6 +41,8 @@ import numpy as np
 from . import snap_command, tolerance_command
 from .core import equilibria, InvalidParameterError, ModuleParams, track_module
 from .core.start_state import start_state, upright_guess
+from .passage_records import (stack_passage_line, stack_passage_record, undecided_line,
+                              undecided_record)
 from .problem import (APPLY_ORDER, DEFAULT_FIELDS, describe, describe_modules, PARAMETERS,
                       resolve_fields)
 
@@ -420,6 +422,7 @@ def cmd_track(args, out):
         'start': {'theta1': first.theta1, 'theta2': first.theta2, 'stable': bool(first.stable),
                   'params': params_record(start)},
         'events': [jump_record(j) for j in track.jumps],
+        'undecided': [undecided_record(u) for u in track.undecided],
         'final': {'theta1': final.theta1, 'theta2': final.theta2, 'stable': bool(final.stable),
                   'eigenvalues': [float(v) for v in final.eigenvalues],
                   'energy': float(final.energy), 'actuator_force': float(final.actuator_force),
@@ -435,6 +438,7 @@ def cmd_track(args, out):
               f'{first.kind}\n')
     if not track.jumps:
         out.write('no jump: the mechanism stays on its branch\n')
+    out.writelines(undecided_line(u) for u in track.undecided)
     for i, j in enumerate(track.jumps, 1):
         note = ' (ambiguous: the two sides land differently)' if j.ambiguous else ''
         out.write(f'event {i}: {j.kind} at s={j.s:.9f} rho={j.params.rho:.9g}: '
@@ -705,15 +709,6 @@ def stack_jump_record(jump):
             'ambiguous': bool(jump.ambiguous), 'F3': float(head.f3y), 'F4': float(head.f4y)}
 
 
-def stack_passage_record(passage):
-    """A supercritical branch point the stack passed continuously, as JSON."""
-    head = passage.stack.modules[-1]
-    return {'kind': 'branch_point', 's': float(passage.s),
-            'rho': [float(m.rho) for m in passage.stack.modules],
-            'theta': [[float(a), float(b)] for a, b in passage.theta],
-            'F3': float(head.f3y), 'F4': float(head.f4y)}
-
-
 def cmd_stack_track(args, out):
     from .core.stack import settle_stack, track_stack
     spec = _stack_spec(args)
@@ -746,6 +741,7 @@ def cmd_stack_track(args, out):
                       guess_source=source, params=[params_record(m) for m in start.modules]),
         'events': [stack_jump_record(j) for j in track.jumps],
         'passages': [stack_passage_record(p) for p in track.passages],
+        'undecided': [undecided_record(u) for u in track.undecided],
         'final': dict(state(final, track.end),
                       params=[params_record(m) for m in track.end.modules]),
     }
@@ -757,11 +753,8 @@ def cmd_stack_track(args, out):
               f'  ->  {describe_modules(end.modules, names)}\n')
     out.write(f'start ({source}): theta [deg] {_theta_text(first.theta, names)}; '
               f'{_head_text(first)}; margin {first.stability_margin:.4g} N/m\n')
-    for p in track.passages:
-        rho = ', '.join(f'{m.rho:.9g}' for m in p.stack.modules)
-        out.write(f'passed: branch_point at s={p.s:.9f} rho=({rho}): theta [deg] '
-                  f'{_theta_text(p.theta, names)}, buckled continuously (supercritical: '
-                  f'no jump)\n')
+    out.writelines(stack_passage_line(p, names) for p in track.passages)
+    out.writelines(undecided_line(u, names) for u in track.undecided)
     if not track.jumps:
         out.write('no jump: the stack stays on its branch\n')
     for i, j in enumerate(track.jumps, 1):

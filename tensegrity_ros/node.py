@@ -56,7 +56,8 @@ from tensegrity_ros import (node_parameters as params, node_process as process,
                             ros_conversions as conv)
 from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog, force_key,
                                                     target_key)
-from tensegrity_ros.core.events import Deferred, FAILED, Jump, JumpAhead, Passage, TrackingFailure
+from tensegrity_ros.core.events import (Deferred, FAILED, Jump, JumpAhead, Passage,
+                                        TrackingFailure, Undecided)
 from tensegrity_ros.core.frames import chord_frames
 from tensegrity_ros.core.stack import Stack
 from tensegrity_ros.core.trajectory import ABORTED, MotionEnded, TrajectoryPlayer
@@ -158,7 +159,8 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
         self._counters = {f'rejected_{r}': 0 for r in REJECT_REASONS}
         self._counters.update(commands_processed=0, commands_coalesced=0,
                               callback_exceptions=0, jump_warnings=0,
-                              tracking_failures=0, jumps_total=0, commands_deferred=0)
+                              tracking_failures=0, jumps_total=0, commands_deferred=0,
+                              undecided_total=0)
         self._counters.update(dict.fromkeys(TRAJECTORY_COUNTERS, 0))
         self._mirroring = False             # setting parameters to live values
         self._level_events = set()          # what happened since the last /diagnostics
@@ -504,6 +506,8 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
                 self._report_deferred(event)
             elif isinstance(event, Passage):
                 self._report_passage(event)
+            elif isinstance(event, Undecided):
+                self._report_undecided(event)
             elif isinstance(event, MotionEnded):
                 self._report_motion_ended(event)
         if jumped:
@@ -536,6 +540,18 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
                          for name, p in zip(self._names, passage.modules))
         self.get_logger().info(f'{m}: passed a branch point continuously ({passage.cause}) at '
                                f'{rhos}: the mechanism buckled smoothly to one side, no jump')
+
+    def _report_undecided(self, undecided):
+        """A passage whose side doubles cannot decide: an ``undecided`` message on ``jumps``
+        and a WARN line, counted in ``undecided_total``; no jump."""
+        self._counters['undecided_total'] += 1
+        m = self._names[undecided.module]
+        msg = conv.undecided_status(name=f'{self.get_name()}: {m} undecided',
+                                    hardware_id=self._hardware_id, modules=self._names,
+                                    undecided=undecided)
+        self._jumps_pub.publish(msg)
+        self._throttled('undecided').warning(f'{m}: {undecided.cause}: {msg.message}',
+                                             throttle_duration_sec=WARN_THROTTLE_SEC)
 
     def _report_tracking_failure(self, failure):
         self._count_and_warn('tracking_failures', 'tracking',

@@ -296,6 +296,35 @@ def jump_status(*, name, hardware_id, modules, jump):
     return status
 
 
+def undecided_status(*, name, hardware_id, modules, undecided):
+    """One ``jumps`` message of kind ``undecided`` (msg_docs/jumps.md) from a simulator
+    :class:`~tensegrity_ros.core.events.Undecided`: a branch point passed continuously
+    whose side doubles cannot decide.  ``rho``, ``rho_uncertainty``, ``theta1/2`` and the
+    forces are the commanding module's, ``s_uncertainty`` the command path's; a neck adds
+    every module's ``<m>_rho``, ``<m>_rho_uncertainty`` and ``<m>_theta1/2``."""
+    index = undecided.module
+    params, theta = undecided.modules[index], undecided.theta
+    span = float(undecided.rho_uncertainty[index])
+    message = (f'undecided at {modules[index]} rho={params.rho:.6g}: passed a branch point '
+               f'continuously to one side, which an imperfection within '
+               f'{undecided.s_uncertainty:.2g} of the path'
+               + (f' ({span:.2g} m of rho)' if span > 0.0 else '')
+               + ' would decide (below what doubles resolve)')
+    status = DiagnosticStatus(level=WARN, name=name, message=message, hardware_id=hardware_id)
+    pairs = [('module', modules[index]), ('kind', 'undecided'), ('rho', float(params.rho)),
+             ('rho_uncertainty', span), ('s_uncertainty', float(undecided.s_uncertainty)),
+             ('theta1', float(theta[index][0])),
+             ('theta2', float(theta[index][1])), ('f3x', params.f3x), ('f3y', params.f3y),
+             ('f4x', params.f4x), ('f4y', params.f4y), ('cause', undecided.cause)]
+    if len(modules) > 1:
+        for i, m in enumerate(modules):
+            pairs += [(f'{m}_rho', float(undecided.modules[i].rho)),
+                      (f'{m}_rho_uncertainty', float(undecided.rho_uncertainty[i])),
+                      (f'{m}_theta1', float(theta[i][0])), (f'{m}_theta2', float(theta[i][1]))]
+    status.values = key_values(pairs)
+    return status
+
+
 #: The snap figures a ``jumps`` message of the dynamics mode adds (msg_docs/jumps.md).
 DYNAMIC_KEYS = ('onset_rho', 'onset_time', 'peak_speed', 'peak_actuator_force', 'overshoot',
                 'settle_time', 'lands_elsewhere')

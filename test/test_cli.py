@@ -586,7 +586,14 @@ def test_stack_track_text(capsys):
     lines = out.splitlines()
     assert lines[3].startswith('passed: branch_point at s=0.115514501 ')
     assert lines[3].endswith('buckled continuously (supercritical: no jump)')
-    assert lines[4].startswith('event 1: fold at s=0.227085456 ')
+    # a mirror-symmetric neck: which side it buckles to is not the model's to decide
+    assert lines[4].startswith('undecided: branch_point at s=0.115514501 ')
+    assert 'passed continuously to one side' in lines[4] and ' m of rho' not in lines[4]
+    assert lines[5].startswith('event 1: fold at s=0.227085456 ')
+    code, out, err = run(capsys, 'track', '--config', NECK, '--to-F', -30, '--json')
+    [undecided] = json.loads(out)['undecided']
+    assert undecided['kind'] == 'undecided' and 0.0 < undecided['s_uncertainty'] < 1e-8
+    assert undecided['rho_uncertainty'] == [0.0, 0.0, 0.0] and len(undecided['theta']) == 3
 
 
 def test_config_file_layouts(capsys, tmp_path):

@@ -187,8 +187,10 @@ def test_head_load_jump_reported_by_a_lower_module_command(neck):
 
 def test_a_sideways_buckling_under_a_heavy_head_publishes_no_jump(neck):
     """config/neck.yaml, 3.5 N per head node, m1 rho 0.085 -> 0.07 by rho_cmd: a
-    supercritical branch point (the upright neck turns sideways smoothly): nothing on
-    ``jumps``, none counted, joint_states reach the buckled state."""
+    supercritical branch point (the upright neck turns sideways smoothly): no jump on
+    ``jumps``, none counted, joint_states reach the buckled state.  The neck is mirror
+    symmetric, so which side it buckles to is no model's to decide: one ``undecided``
+    message says so, with its uncertainty, counted in ``undecided_total``."""
     n = neck()
     h = n.h
     stack, eq = n.load_head(3.5)
@@ -204,11 +206,21 @@ def test_a_sideways_buckling_under_a_heavy_head_publishes_no_jump(neck):
     h.spin_until(lambda: len(n.statuses()) == 3 and float(n.statuses()['m1']['rho']) == 0.07
                  and all(v['jumps_total'] == '0' for v in n.statuses().values()),
                  what='statuses after the buckling')
-    assert not h.jumps and h.node.counters['jumps_total'] == 0
+    assert h.node.counters['jumps_total'] == 0
+    h.spin_until(lambda: h.jumps, what='the undecided message')
+    [msg] = h.jumps
+    v = values(msg)
+    assert v['kind'] == 'undecided' and v['module'] == 'm1' and v['cause'] == 'rho_cmd'
+    assert float(v['rho']) == expected.undecided[0].stack.modules[1].rho
+    assert 0.0 < float(v['rho_uncertainty']) < 1e-9 and 0.0 < float(v['s_uncertainty']) < 1e-8
+    assert [float(v[f'{m}_theta1']) for m in MODULES] == list(expected.undecided[0].theta[:, 0])
+    assert msg.level == DiagnosticStatus.WARN and 'one side' in msg.message
+    assert h.node.counters['undecided_total'] == 1
 
     # said once on /rosout at INFO, with where it happened, and not as a warning
     def said():
-        return [m for m in h.log if 'passed a branch point continuously' in m.msg]
+        return [m for m in h.log if 'passed a branch point continuously' in m.msg
+                and 'undecided' not in m.msg]
     h.spin_until(said, what='the INFO line of the continuous buckling')
     [line] = said()
     rho = expected.passages[0].stack.modules[1].rho

@@ -1,20 +1,22 @@
 """ROS-free core: the model, the exact solver, stability and the tracker (numpy/scipy only)."""
 from .continuation import (BRANCH_POINT, Event, FOLD, PathProblem, Track, track, TrackerSettings,
-                           TrackingError)
+                           TrackingError, Undecided)
 from .dynamics import RhoRamp, simulate_snap, Snap, SnapHistory
 from .equilibria import (classify, equilibria, equilibria_batch, Equilibrium, EquilibriumBatch,
                          EquilibriumSet)
 from .module import (actuator_force, energy, gradient, hessian, InvalidParameterError,
                      ModuleParams, node_positions, PARAMETER_NAMES, STANDARD_GRAVITY)
-from .tracking import equilibrium_at, ModuleJump, ModulePath, ModuleTrack, settle, track_module
+from .tracking import (equilibrium_at, ModuleJump, ModulePath, ModuleTrack, ModuleUndecided,
+                       settle, track_module)
 
 __all__ = [
     'ModuleParams', 'InvalidParameterError', 'PARAMETER_NAMES', 'STANDARD_GRAVITY',
     'energy', 'gradient', 'hessian', 'actuator_force', 'node_positions',
     'Equilibrium', 'EquilibriumSet', 'EquilibriumBatch', 'equilibria', 'equilibria_batch',
     'classify',
-    'PathProblem', 'TrackerSettings', 'Track', 'Event', 'TrackingError', 'track',
+    'PathProblem', 'TrackerSettings', 'Track', 'Event', 'TrackingError', 'track', 'Undecided',
     'FOLD', 'BRANCH_POINT',
-    'ModuleJump', 'ModuleTrack', 'ModulePath', 'track_module', 'settle', 'equilibrium_at',
+    'ModuleJump', 'ModuleTrack', 'ModuleUndecided', 'ModulePath', 'track_module', 'settle',
+    'equilibrium_at',
     'RhoRamp', 'Snap', 'SnapHistory', 'simulate_snap',
 ]

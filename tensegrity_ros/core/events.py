@@ -68,6 +68,35 @@ class Passage:
 
 
 @dataclass(frozen=True)
+class Undecided:
+    """Not a jump, and not decided: the mechanism passed a branch point continuously
+    (listed as a :class:`Passage` too), but which side it buckled to lies below what
+    doubles resolve.  An imperfection whose branch structure spans less than
+    ``s_uncertainty`` of the command's path (``rho_uncertainty[i]`` m of module i's
+    actuator; 0 where the command does not move it, e.g. a load) would pick the side (a
+    perfectly symmetric model has none); the simulator took one by the tracker's rule.
+    ``modules``
+    are every module's parameters there, ``theta`` (N x 2) the critical configuration;
+    ``module`` and ``cause`` as in :class:`Jump`."""
+
+    modules: tuple
+    theta: np.ndarray
+    s_uncertainty: float
+    rho_uncertainty: tuple
+    module: int
+    cause: str
+
+
+def passage_events(motion, module, cause):
+    """The :class:`Passage` and :class:`Undecided` events of a tracked ``motion``
+    (:class:`~.mechanisms.Motion`), made by ``module``'s command ``cause``."""
+    passages = tuple(Passage(modules=tuple(modules), module=module, cause=cause)
+                     for modules in motion.passages)
+    return passages + tuple(Undecided(tuple(modules), theta, s_size, tuple(span), module, cause)
+                            for modules, theta, s_size, span in motion.undecided)
+
+
+@dataclass(frozen=True)
 class TrackingFailure:
     """A path could not be tracked to its end; ``text`` says where and why.  The state
     is the last verified one (where tracking stopped, or unchanged)."""

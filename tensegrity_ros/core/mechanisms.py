@@ -26,7 +26,9 @@ from .tracking import settle, track_module
 class Motion:
     """What one tracked path did: the verified ``final`` state, the module parameters
     ``end`` it holds for (the commanded end unless ``status`` is ``failed``), the jumps,
-    and ``passages``: every module's parameters at each branch point passed continuously.
+    and ``passages``: every module's parameters at each branch point passed continuously;
+    ``undecided``: (every module's parameters, theta N x 2, the uncertainty in s, every
+    module's rho uncertainty) of those whose side doubles cannot decide.
     ``certificate``: the tracker's (:attr:`.continuation.Track.certificate`) for ``final``."""
 
     final: object
@@ -36,6 +38,7 @@ class Motion:
     message: str
     passages: tuple = ()
     certificate: str = ''
+    undecided: tuple = ()
 
 
 class ModuleView:
@@ -95,8 +98,10 @@ class OneModule:
         jumps = [(j.kind, j.s, (j.params,), np.array([j.from_theta]), np.array([j.to_theta]),
                   j.ambiguous, (j.landing_params or j.params,)) for j in track.jumps]
         passages = tuple((params,) for params in track.passages)
+        undecided = tuple(((u.params,), np.array([u.theta]), u.s_uncertainty,
+                           (u.rho_uncertainty,)) for u in track.undecided)
         return Motion(track.final, (track.end,), jumps, track.status, track.message, passages,
-                      track.certificate)
+                      track.certificate, undecided)
 
     def views(self, modules, state):
         return (state,)
@@ -165,8 +170,10 @@ class Neck:
         jumps = [(j.kind, j.s, j.stack.modules, j.from_theta, j.to_theta, j.ambiguous,
                   (j.landing_stack or j.stack).modules) for j in track.jumps]
         passages = tuple(p.stack.modules for p in track.passages)
+        undecided = tuple((u.stack.modules, u.theta, u.s_uncertainty, u.rho_uncertainty)
+                          for u in track.undecided)
         return Motion(track.final, track.end.modules, jumps, track.status, track.message,
-                      passages, track.final.certificate)
+                      passages, track.final.certificate, undecided)
 
     def ahead(self, modules, state, index, rho):
         """Where the live branch ends if module ``index``'s actuator goes on to ``rho``

@@ -35,7 +35,7 @@ import numpy as np
 from . import events as ev
 from .bounded_work import Job
 from .continuation import TrackingError
-from .events import Deferred, JumpAhead, Outcome, Passage, TrackingFailure
+from .events import Deferred, JumpAhead, Outcome, TrackingFailure
 from .mechanisms import make_jump, mechanism_for
 from .module import InvalidParameterError, ModuleParams
 from .start_state import start_state
@@ -632,8 +632,7 @@ class Simulator:
             return self._failed(trigger, f'{cause}: tracker returned an unstable state')
         self._set_state(motion.end, motion.final)
         # passages first (a module's passage carries no s to order it by), then the jumps
-        events = tuple(Passage(modules=tuple(modules), module=trigger, cause=cause)
-                       for modules in motion.passages)
+        events = ev.passage_events(motion, trigger, cause)
         events += tuple(self._record_jump(raw, trigger, cause) for raw in motion.jumps)
         if motion.status != 'ok':
             failed = self._failed(trigger, f'{cause}: stopped at {self.names[trigger]} '

@@ -21,7 +21,8 @@ from .stack_path import StackPath
 from .tolerances import verified_minimum
 
 __all__ = ['Stack', 'StackPath', 'StackEquilibrium', 'StackJump', 'StackPassage', 'StackTrack',
-           'stack_equilibrium_at', 'settle_stack', 'track_stack', 'stack_equilibria']
+           'StackUndecided', 'stack_equilibrium_at', 'settle_stack', 'track_stack',
+           'stack_equilibria']
 
 
 @dataclass(frozen=True)
@@ -151,9 +152,22 @@ class StackPassage:
 
 
 @dataclass(frozen=True)
+class StackUndecided:
+    """A passage whose side doubles cannot decide (see :class:`.tracking.ModuleUndecided`):
+    ``rho_uncertainty`` holds every module's actuator span over ``s_uncertainty``."""
+
+    s: float
+    stack: Stack
+    theta: np.ndarray
+    s_uncertainty: float
+    rho_uncertainty: tuple
+
+
+@dataclass(frozen=True)
 class StackTrack:
     """Result of :func:`track_stack` (see :class:`~.tracking.ModuleTrack`); ``passages``
-    lists the branch points passed continuously (:class:`StackPassage`)."""
+    lists the branch points passed continuously (:class:`StackPassage`), ``undecided``
+    those whose side doubles cannot decide (:class:`StackUndecided`)."""
 
     final: StackEquilibrium
     end: Stack
@@ -162,6 +176,7 @@ class StackTrack:
     message: str = ''
     steps: int = 0
     passages: tuple = ()
+    undecided: tuple = ()
 
 
 def _one_step_track(final, end):
@@ -171,7 +186,7 @@ def _one_step_track(final, end):
     added here too)."""
     track = object.__new__(StackTrack)
     track.__dict__.update(final=final, end=end, jumps=(), status='ok', message='', steps=1,
-                          passages=())
+                          passages=(), undecided=())
     return track
 
 
@@ -233,7 +248,16 @@ def track_stack(start: Stack, end: Stack, state_or_theta,
     reached = end if result.s == 1.0 else path.params(result.s)
     final = _record(path, result.state, result.s, certificate=result.certificate)
     return StackTrack(final=final, end=reached, jumps=jumps, status=result.status,
-                      message=result.message, steps=result.steps, passages=passages)
+                      message=result.message, steps=result.steps, passages=passages,
+                      undecided=tuple(_undecided(path, u, start, end) for u in result.undecided))
+
+
+def _undecided(path, undecided, start, end):
+    """The :class:`StackUndecided` of a tracker's :class:`.continuation.Undecided`."""
+    span = tuple(undecided.s_uncertainty * abs(b.rho - a.rho)
+                 for a, b in zip(start.modules, end.modules))
+    return StackUndecided(undecided.s, path.params(undecided.s),
+                          path.angles(undecided.state, undecided.s), undecided.s_uncertainty, span)
 
 
 def _angle_distance(path, a, b):

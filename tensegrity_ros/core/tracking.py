@@ -45,6 +45,21 @@ class ModuleJump:
 
 
 @dataclass(frozen=True)
+class ModuleUndecided:
+    """A branch point passed continuously whose side doubles cannot decide (see
+    :class:`.continuation.Undecided`): ``params`` there, ``theta`` the critical
+    configuration; an imperfection whose branch structure spans less than
+    ``s_uncertainty`` of the command (``rho_uncertainty`` m of the actuator) would decide
+    which side the module buckles to, and the tracker took one by its rule."""
+
+    s: float
+    params: ModuleParams
+    theta: np.ndarray
+    s_uncertainty: float
+    rho_uncertainty: float
+
+
+@dataclass(frozen=True)
 class ModuleTrack:
     """Result of :func:`track_module`.
 
@@ -52,7 +67,8 @@ class ModuleTrack:
     (``end`` is where tracking stopped; ``final`` is still a verified stable
     equilibrium there).  ``final`` is never an unverified state.  ``passages``:
     the parameters of each supercritical branch point passed continuously (the
-    module buckled smoothly onto a new minimum: not a jump).  ``certificate``: as
+    module buckled smoothly onto a new minimum: not a jump); ``undecided``: those of
+    them whose side doubles cannot decide (:class:`ModuleUndecided`).  ``certificate``: as
     :attr:`.continuation.Track.certificate` (non-empty where ``final`` is so close past
     such a branch point that it is shown a minimum by the normal form; its
     classification, whose tolerance is coarser, may then read 'degenerate').
@@ -66,6 +82,7 @@ class ModuleTrack:
     steps: int = 0
     passages: tuple = ()
     certificate: str = ''
+    undecided: tuple = ()
 
 
 class ModulePath:
@@ -289,4 +306,7 @@ def track_module(start: ModuleParams, end: ModuleParams, theta,
     return ModuleTrack(final=final, end=reached, jumps=jumps,
                        status=result.status, message=result.message, steps=result.steps,
                        passages=tuple(path.params(s) for s, _ in result.passages),
-                       certificate=result.certificate)
+                       certificate=result.certificate,
+                       undecided=tuple(ModuleUndecided(
+                           u.s, path.params(u.s), _wrap(u.state), u.s_uncertainty,
+                           u.s_uncertainty * abs(end.rho - start.rho)) for u in result.undecided))

@@ -27,7 +27,8 @@ The concepts, each in its own module (docs/architecture.md draws the arrows):
   :func:`track_settled`, :func:`settle`.
 """
 from .problem import PathProblem
-from .results import BRANCH_POINT, Event, FOLD, PITCHFORK_CERTIFIED, Track, TrackingError
+from .results import (BRANCH_POINT, Event, FOLD, PITCHFORK_CERTIFIED, Track, TrackingError,
+                      Undecided)
 from .settings import (ARC_RESOLUTION, LOCATION_TOL, PITCHFORK_CONTRACTION, TrackerSettings,
                        UNRESOLVED, UNRESOLVED_UPDATE)
 from .step_rules import (energy_consistent, forward_rate, near_prediction, positive_definite,
@@ -35,7 +36,7 @@ from .step_rules import (energy_consistent, forward_rate, near_prediction, posit
 from .tracker import settle, track, track_settled
 
 __all__ = [
-    'PathProblem', 'TrackerSettings', 'Track', 'Event', 'TrackingError', 'FOLD',
+    'PathProblem', 'TrackerSettings', 'Track', 'Event', 'TrackingError', 'Undecided', 'FOLD',
     'BRANCH_POINT', 'PITCHFORK_CERTIFIED', 'PITCHFORK_CONTRACTION', 'LOCATION_TOL',
     'UNRESOLVED', 'UNRESOLVED_UPDATE', 'ARC_RESOLUTION', 'track', 'track_settled', 'settle',
     'positive_definite', 'step_bound', 'forward_rate', 'near_prediction',

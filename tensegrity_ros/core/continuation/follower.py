@@ -307,7 +307,7 @@ class _Position:
         return Track(state=self.y, s=self.s, eigenvalues=np.asarray(self.eigenvalues),
                      events=tuple(self.events), status=status, message=message,
                      steps=run.steps, passages=tuple(run.passages),
-                     certificate=run.certificate)
+                     certificate=run.certificate, undecided=tuple(run.undecided))
 
 
 def out_of_budget(run):
@@ -317,4 +317,5 @@ def out_of_budget(run):
                  status='failed',
                  message=f'time budget of {run.settings.time_budget:g} s used up '
                          f'(last verified state at s={float(s)!r})',
-                 steps=run.steps, passages=tuple(run.passages), certificate=run.certificate)
+                 steps=run.steps, passages=tuple(run.passages), certificate=run.certificate,
+                 undecided=tuple(run.undecided))

@@ -14,9 +14,9 @@ from typing import NamedTuple
 from . import ambiguity, indicators
 from .branch_switching import at_the_critical_point, follow_buckled
 from .flows import slide
-from .normal_form import branch_law, goes_through, is_fold, TURNS_BACK
+from .normal_form import branch_law, goes_through, is_fold, TURNS_BACK, undecided_below
 from .problem import admissible
-from .results import Event, FOLD, TrackingError
+from .results import Event, FOLD, TrackingError, Undecided
 from .run_state import inf_norm
 
 
@@ -39,8 +39,11 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
     if through is not None:                 # the branch crosses s* and stays stable
         return (*through, None)
     if not fold:                            # (a fold is a jump, however close it lands)
+        passed = len(run.passages)
         buckled = follow_buckled(run, s_star, y_star, s_end)
         if buckled is not None:             # supercritical: no jump, the state goes on
+            if len(run.passages) > passed:
+                undecided(run, s_star, y_star, law)
             return buckled
         release = released(run, s_star, y_star, s_end)
         if release is not None and release.goes_on:
@@ -72,6 +75,15 @@ def land(run, kind, s_star, y_star, s_end, reach=1e-3):
         return landing, s_land, None
     return landing, s_land, Event(kind=kind, s=s_star, state=y_star, landing_s=s_at,
                                   landing=at_event, ambiguous=ambiguous)
+
+
+def undecided(run, s_star, y_star, law):
+    """List the passage at (s*, y*) as :class:`Undecided` where its ``ahead`` law held
+    down to where doubles resolve it (:func:`.normal_form.undecided_below`): which side
+    the state took is then the tracker's rule, not the model's."""
+    below = undecided_below(law, s_star)
+    if below is not None:
+        run.undecided.append(Undecided(s_star, y_star, *below))
 
 
 #: Where the mechanism released at a critical state is let come to rest (in s past it)

@@ -68,6 +68,8 @@ class BranchLaw(NamedTuple):
     quadratic: float = 0.0
     amplitude: float = 0.0
     sigma0: float = 0.0
+    #: The smallest amplitude the law was confirmed at (two fits agreeing there).
+    confirmed: float = 0.0
 
 
 def _sides(run, s_star, y_star, direction, a):
@@ -101,12 +103,21 @@ def _agree(coarse, fine, a):
 
 
 def branch_law(run, s_star, y_star, psi, amplitude=None):
-    """The :class:`BranchLaw` of the branch through (y*, s*) along psi."""
+    """The :class:`BranchLaw` of the branch through (y*, s*) along psi.
+
+    A ``through`` or ``turns_back`` verdict is taken at the first scale where two fits
+    agree.  An ``ahead`` one is measured on down to where s - s* sinks into rounding:
+    an imperfect pitchfork's law is the perfect one's at amplitudes above the
+    imperfection's scale and ``through`` below it (U = x^4/4 - mu x^2/2 - eps x, eps =
+    1e-14: ``ahead`` at 0.01 .. 6e-4, the vertex at 3e-5).  The finer scale's verdict
+    stands where it is resolved; where it is not (no two fits agree there) the law is
+    ``ahead`` with ``confirmed`` the smallest amplitude it held at, and the branch's
+    shape below is unknown (:func:`undecided_below`)."""
     a = (run.settings.step_off if amplitude is None else amplitude) / max(
         run.step_norm(psi), 1e-300)
     direction = np.append(psi, 0.0)
     floor = LAW_RESOLUTION * max(1.0, abs(s_star))
-    levels, fits = [], []
+    levels, fits, ahead = [], [], None
     for _ in range(LAW_LEVELS):
         bounded_work.checkpoint()       # (a time budget is checked between levels)
         sides = _sides(run, s_star, y_star, direction, a)
@@ -119,17 +130,20 @@ def branch_law(run, s_star, y_star, psi, amplitude=None):
             if len(levels) >= 2:
                 fits.append(_fit(levels[-2], levels[-1]))
             if len(fits) >= 2 and _agree(fits[-2], fits[-1], levels[-2][0]):
-                return _verdict(fits[-1], levels[-3][0])
+                verdict = _verdict(fits[-1], levels[-3][0], levels[-1][0])
+                if verdict.law != AHEAD:
+                    return verdict
+                ahead = verdict if ahead is None else ahead._replace(confirmed=a)
         a *= 0.25
-    return BranchLaw(UNRESOLVED_LAW)
+    return BranchLaw(UNRESOLVED_LAW) if ahead is None else ahead
 
 
-def _verdict(fit, reach):
-    """The law of the fit, measured up to the amplitude ``reach``."""
+def _verdict(fit, reach, finest):
+    """The law of the fit, measured at amplitudes ``finest`` .. ``reach``."""
     sigma0, c1, c2 = fit
     if abs(c1) > 2.0 * abs(c2) * reach:          # the vertex lies farther out
-        return BranchLaw(THROUGH, c1, c2, reach, sigma0)
-    return BranchLaw(TURNS_BACK if c2 < 0.0 else AHEAD, c1, c2, reach, sigma0)
+        return BranchLaw(THROUGH, c1, c2, reach, sigma0, finest)
+    return BranchLaw(TURNS_BACK if c2 < 0.0 else AHEAD, c1, c2, reach, sigma0, finest)
 
 
 def _bordered_residual(run, y_star, s, u, v, h):
@@ -177,7 +191,7 @@ def is_fold(run, s_star, y_star, law):
 #: definiteness tolerances of lambda_max (as a buckled branch's, :mod:`.branch_switching`).
 THROUGH_MARGIN = 100.0
 #: Amplitude doublings tried from the law's reach before lambda_min shows that margin.
-THROUGH_DOUBLINGS = 8
+THROUGH_DOUBLINGS = 12
 
 
 def goes_through(run, s_star, y_star, law, s_end):
@@ -186,33 +200,79 @@ def goes_through(run, s_star, y_star, law, s_end):
 
     A ``through`` law says the branch crosses s* monotonically (a dip of lambda_min that
     is no critical point: an imperfect pitchfork's connected branch, lambda_min down to
-    ~1e-11 of lambda_max on a nearly symmetric paper neck under a head load).  Where the
-    state on it past s* is a minimum with a margin, the minimum goes on: no jump, and no
-    flow is needed to say so (such a branch moves ~0.1 rad in 1e-6 of s, out of reach of
-    a frozen flow's rest test).  The side is the one the law's linear term takes forward
-    in s; the amplitude starts at the law's reach and doubles until the state is clearly
-    stable, each point checked to lie on the law where the law was measured."""
-    if law.law != THROUGH or law.linear == 0.0:
+    ~1e-11 of lambda_max on a nearly symmetric paper neck under a head load).  So does an
+    ``ahead`` law whose vertex, resolvable in s, lies below the amplitudes it was
+    confirmed at (:func:`resolved_imperfection`).  Where the state on that branch past
+    s* is a minimum with a margin, the minimum goes on: no jump, and no flow is needed
+    to say so (such a branch moves ~0.1 rad in 1e-6 of s, out of reach of a frozen
+    flow's rest test).  The side is the one the law's linear term takes forward in s;
+    the amplitude starts where two fits of a ``through`` law were checked to agree (the
+    law's reach can be off it by 20 %: a nearly symmetric N = 3 paper neck under a head
+    load), its first point checked to lie on the law, or at the vertex of an
+    imperfection's; it doubles until the state is clearly stable, s growing all the way."""
+    start = _through_start(law, s_star)
+    if start is None:
         return None
+    a, on_law = start
     _, psi = run.critical(y_star, s_star)
     forward = np.sign(law.linear)
     direction = np.append(forward * psi, 0.0)
-    a = law.amplitude
+    s_before = s_star
     for doubling in range(THROUGH_DOUBLINGS):
         bounded_work.checkpoint()
         found = arc_point(run, y_star, s_star, direction, a, any_s=True)
-        if found is None or not found[1] > s_star:
+        if found is None or not found[1] > s_before:
             return None
-        y, s = found
-        if doubling == 0 and not _on_the_law(law, forward * a, s - s_star):
+        y, s_before = found
+        if doubling == 0 and on_law and not _on_the_law(law, forward * a, s_before - s_star):
             return None
-        eigenvalues = run.eigenvalues(y, s)
-        if eigenvalues[0] < 0.0 or s > s_end:
+        eigenvalues = run.eigenvalues(y, s_before)
+        if eigenvalues[0] < 0.0 or s_before > s_end:
             return None
         if eigenvalues[0] > THROUGH_MARGIN * run.settings.definiteness_tol * abs(eigenvalues[-1]):
-            return y, s
+            return y, s_before
         a *= 2.0
     return None
+
+
+def _through_start(law, s_star):
+    """(first amplitude, whether it lies on the law) of :func:`goes_through`, or None."""
+    if law.linear == 0.0:
+        return None
+    if law.law == THROUGH:              # (where two fits were checked to agree)
+        return 4.0 * law.confirmed, True
+    if resolved_imperfection(law, s_star):
+        return vertex(law), False
+    return None
+
+
+def vertex(law):
+    """The amplitude of the law's vertex (its s-extremum) from y*: |c1 / (2 c2)|."""
+    return abs(law.linear) / (2.0 * abs(law.quadratic)) if law.quadratic else np.inf
+
+
+def resolved_imperfection(law, s_star):
+    """Whether an ``ahead`` law shows an imperfect pitchfork: its vertex lies below the
+    amplitudes it was confirmed at (a perfect pitchfork's tracked branch runs through
+    the vertex itself, so y* lies there to rounding), and the vertex's own s-size
+    c1^2 / (4 |c2|) is above :data:`LAW_RESOLUTION`."""
+    if law.law != AHEAD or not vertex(law) < law.confirmed:
+        return False
+    return law.linear ** 2 / (4.0 * abs(law.quadratic)) > LAW_RESOLUTION * max(1.0, abs(s_star))
+
+
+def undecided_below(law, s_star):
+    """(s-size, amplitude) below which the law of a branch point passed by the rule of
+    :func:`.branch_switching.buckled_minimum` (the side along +psi) is not resolved, or
+    None (no law measured, or an imperfection resolved).  The side the state takes is
+    then decided by an imperfection (if any) doubles cannot see: a nearly symmetric
+    N = 3 .. 5 paper neck under a head load, module 0's ka 1e-14 off, buckles to the
+    side the 1e-6 .. 1e-12 offs do not.  The amplitude is the smallest the law was
+    confirmed at, the s-size the law's s - s* there."""
+    if law.law == UNRESOLVED_LAW or not law.confirmed or resolved_imperfection(law, s_star):
+        return None
+    a = law.confirmed
+    return abs(law.quadratic) * a * a + abs(law.linear) * a, a
 
 
 def _on_the_law(law, a, past):

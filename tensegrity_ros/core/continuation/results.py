@@ -29,6 +29,21 @@ class Event:
 
 
 @dataclass(frozen=True)
+class Undecided:
+    """A supercritical branch point passed whose side doubles cannot decide: the law of
+    its branch (:func:`.normal_form.branch_law`) held down to amplitude ``amplitude`` (in
+    the tracker's state norm) and s - s* = ``s_uncertainty``; an imperfection whose
+    branch structure lies below that would pick the side the mechanism takes, and the
+    tracker took one by its rule (:func:`.branch_switching.buckled_minimum`).  Not a
+    jump: the passage is listed too."""
+
+    s: float
+    state: np.ndarray
+    s_uncertainty: float
+    amplitude: float
+
+
+@dataclass(frozen=True)
 class Track:
     """Result of :func:`track`: the last verified stable state, where it is, and the events.
 
@@ -41,6 +56,7 @@ class Track:
     the command ended so close past a passed branch point (~1e-6 in s) that the
     buckled minimum's lambda_min is below that margin, and it is shown positive by the
     branch point's normal form instead (:func:`.branch_switching.buckled_at`).
+    ``undecided``: the passages whose side doubles could not decide (:class:`Undecided`).
     """
 
     state: np.ndarray
@@ -52,6 +68,7 @@ class Track:
     steps: int = 0
     passages: tuple = ()
     certificate: str = ''
+    undecided: tuple = ()
 
 
 class TrackingError(RuntimeError):

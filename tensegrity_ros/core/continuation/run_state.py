@@ -50,6 +50,7 @@ class RunState:
         self.last_rate = None     # d lambda_min / ds over the last accepted step
         self.base_scale = None    # the stability scale at the start
         self.passages = []        # (s, state) of the branch points passed continuously
+        self.undecided = []       # Undecided: the passages whose side doubles cannot decide
         self.certificate = ''     # how the final state's definiteness was shown (Track)
         #: Newton's contraction test (see :meth:`newton`)
         self.contraction = 0.5

@@ -20,7 +20,6 @@ LIMITS = {'file': 600, 'class': 400, 'function': 60}
 KNOWN = {
     ('file', 'cli.py', ''): 1058,
     ('function', 'cli.py', 'build_parser'): 131,
-    ('function', 'cli.py', 'cmd_stack_track'): 61,
     ('function', 'cli.py', 'cmd_map'): 67,
     ('file', 'figures.py', ''): 753,
     ('file', 'node.py', ''): 954,

@@ -83,13 +83,14 @@ class Harness:
                            for w in ('a3', 'a4')}
         self.jc_pub = c.create_publisher(JointState, 'joint_commands', PUB_QOS)
         self.joint_states, self.stable, self.equilibrium, self.jumps = [], [], [], []
+        self.undecided = []     # ``jumps`` messages of kind 'undecided' (not jumps)
         self.diagnostics, self.markers = [], []
         c.create_subscription(JointState, 'joint_states', self.joint_states.append, STREAM_QOS)
         # the node's own outputs and service are private: <ns>/tensegrity/<name>
         c.create_subscription(Bool, self.private('stable'), self.stable.append, LATCHED_QOS)
         c.create_subscription(DiagnosticStatus, self.private('equilibrium'),
                               self.equilibrium.append, LATCHED_QOS)
-        c.create_subscription(DiagnosticStatus, self.private('jumps'), self.jumps.append,
+        c.create_subscription(DiagnosticStatus, self.private('jumps'), self._on_jumps,
                               LATCHED_QOS)
         c.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics, STREAM_QOS)
         c.create_subscription(MarkerArray, self.private('markers'), self.markers.append,
@@ -123,6 +124,10 @@ class Harness:
     def _on_log(self, msg):
         if self.node and msg.name == self.node.get_logger().name:
             self.log.append(msg)
+
+    def _on_jumps(self, msg):
+        undecided = values(msg)['kind'] == 'undecided'
+        (self.undecided if undecided else self.jumps).append(msg)
 
     def warnings(self, text):
         return [m.msg for m in self.log if m.level == Log.WARN and text in m.msg]

@@ -207,8 +207,9 @@ def test_a_sideways_buckling_under_a_heavy_head_publishes_no_jump(neck):
                  and all(v['jumps_total'] == '0' for v in n.statuses().values()),
                  what='statuses after the buckling')
     assert h.node.counters['jumps_total'] == 0
-    h.spin_until(lambda: h.jumps, what='the undecided message')
-    [msg] = h.jumps
+    h.spin_until(lambda: h.undecided, what='the undecided message')
+    [msg] = h.undecided
+    assert not h.jumps
     v = values(msg)
     assert v['kind'] == 'undecided' and v['module'] == 'm1' and v['cause'] == 'rho_cmd'
     assert float(v['rho']) == expected.undecided[0].stack.modules[1].rho

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import equilibria, ModuleParams, settle, track_module, TrackingError
-from tensegrity_ros.core.events import combined, Jump, JumpAhead, Passage, TrackingFailure
+from tensegrity_ros.core.events import (combined, Jump, JumpAhead, Passage, TrackingFailure,
+                                        Undecided)
 import tensegrity_ros.core.mechanisms as mechanisms
 from tensegrity_ros.core.simulator import ModuleLimits, Simulator
 from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
@@ -458,8 +459,11 @@ def test_the_flat_state_buckles_smoothly_without_warning_or_jump():
     end = sim.status(0).operation_range.lower
     assert (end.kind, end.rho) == ('branch_point', 1.0)
     outcome = sim.command_rho(0, 0.75, 0)
-    [passage] = outcome.events                     # a Passage, not a jump
+    passage, undecided = outcome.events            # a Passage, not a jump
     assert isinstance(passage, Passage) and passage.modules[0].rho == pytest.approx(1.0, abs=1e-9)
+    # (the module is mirror symmetric: which side it buckles to is no model's to decide)
+    assert isinstance(undecided, Undecided) and undecided.modules == passage.modules
+    assert 0.0 < undecided.rho_uncertainty[0] < 1e-8 and undecided.module == 0
     upper = equilibria(ModuleParams(rho=0.75)).stable
     theta = sim.module(0)[1].theta
     assert min(wrapped(theta, e.theta) for e in upper) < 1e-9 and wrapped(theta, (0, 0)) > 0.5

@@ -125,27 +125,25 @@ def whole_command_step(path, y, settings, known=None):
     anything else.
 
     A small command is one continuation step, accepted by the tracker's own rules
-    (:func:`~.continuation.positive_definite`, :func:`~.continuation.step_bound`,
-    :func:`~.continuation.near_prediction`, :func:`~.continuation.energy_consistent`):
-    a stable equilibrium at s = 0, a whole step within the step bound, Newton
-    converging to a point near the prediction, the energy change matching the
-    envelope theorem, a positive definite reduced Hessian at s = 1.  The step bound's
+    (:mod:`~.continuation.step_rules`): a stable equilibrium at s = 0, a whole step within
+    the step bound, Newton converging near the prediction, the energy change matching the
+    envelope theorem, the trapezoid rule (the tangent at s = 1 from Newton's last factors),
+    a positive definite reduced Hessian at s = 1.  The step bound's
     eigenvalue half (its forward-difference probe) is applied only where the smallest
     eigenvalue at s = 1 is below ``_STEADY`` of the start's; where it is not, the step
     is taken without it.  What that gives up: a lambda_min that falls steeply at s = 0
     and recovers to 90 % by s = 1 makes the tracker shorten its step, not this one (an
     event inside would need two critical points within one small command; none was
     found in the tests, where Newton, the stability test or the probe decline every
-    command that reaches a fold).  ``known`` is the
-    record of ``y`` when it was verified at the start parameters: its eigenvalues,
-    residual and energy are those at s = 0."""
+    command that reaches a fold).  ``known`` is the record of ``y`` when it was verified
+    at the start parameters: its eigenvalues, residual and energy are those at s = 0."""
     cfg = settings
     start, factors = _start_point(path, y, known)
     # (the eigenvalues' tests on Python floats: the same comparisons, without numpy scalars)
     eigenvalues = (path.eigenvalues_at(start) if known is None else known.eigenvalues).tolist()
     scale = max(abs(eigenvalues[-1]), 1e-300)
     tol = cfg.residual_tol * scale
-    weights = path.state_weights
+    weights = path.state_weights                          # (the prediction's miss)
     residual0 = _inf_norm(path.residual_at(start)) if known is None else known.residual
     if not _continuation.positive_definite(eigenvalues, scale, cfg) or residual0 > tol:
         return None
@@ -168,8 +166,10 @@ def whole_command_step(path, y, settings, known=None):
     if y1 is None or not _continuation.near_prediction(_inf_norm(weights * (y1 - predicted)),
                                                        reach, 1.0, cfg):
         return None
-    energy1, energy_s1 = path.energy_at(end), path.energy_s_at(end)
-    if not _continuation.energy_consistent(energy0, energy1, energy_s0, energy_s1, 1.0, scale):
+    energy1 = path.energy_at(end)
+    if not (_continuation.energy_consistent(energy0, energy1, energy_s0,
+                                            path.energy_s_at(end), 1.0, scale)
+            and _trapezoid(path, y, y1, end, backward, factors, cfg)):
         return None
     eigenvalues1 = path.eigenvalues_at(end)
     values1 = eigenvalues1.tolist()
@@ -178,6 +178,16 @@ def whole_command_step(path, y, settings, known=None):
     if not _within_step_bound(path, y, backward, motion, eigenvalues[0], values1[0], cfg):
         return None
     return y1, eigenvalues1, energy1, residual, end, factors
+
+
+def _trapezoid(path, y, y1, end, backward, factors, cfg):
+    """:func:`~.continuation.on_one_branch` for the whole command y -> y1 (``backward`` is
+    -the tangent at y; the one at y1 from Newton's last factors)."""
+    backward1, info = _dgetrs(*factors, path.residual_s_at(end))
+    weights = path.state_weights
+    return info == 0 and _continuation.on_one_branch(
+        _inf_norm(weights * (y1 - y + 0.5 * (backward + backward1))),
+        _inf_norm(weights * (y1 - y)), cfg)
 
 
 def _within_step_bound(path, y, backward, reach, lam0, lam1, cfg):

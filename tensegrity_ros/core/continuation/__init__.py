@@ -31,8 +31,8 @@ from .results import (BRANCH_POINT, Event, FOLD, PITCHFORK_CERTIFIED, Track, Tra
                       Undecided)
 from .settings import (ARC_RESOLUTION, LOCATION_TOL, PITCHFORK_CONTRACTION, TrackerSettings,
                        UNRESOLVED, UNRESOLVED_UPDATE)
-from .step_rules import (energy_consistent, forward_rate, near_prediction, positive_definite,
-                         step_bound)
+from .step_rules import (energy_consistent, forward_rate, near_prediction, on_one_branch,
+                         positive_definite, step_bound)
 from .tracker import settle, track, track_settled
 
 __all__ = [
@@ -40,5 +40,5 @@ __all__ = [
     'BRANCH_POINT', 'PITCHFORK_CERTIFIED', 'PITCHFORK_CONTRACTION', 'LOCATION_TOL',
     'UNRESOLVED', 'UNRESOLVED_UPDATE', 'ARC_RESOLUTION', 'track', 'track_settled', 'settle',
     'positive_definite', 'step_bound', 'forward_rate', 'near_prediction',
-    'energy_consistent',
+    'energy_consistent', 'on_one_branch',
 ]

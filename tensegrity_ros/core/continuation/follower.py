@@ -20,7 +20,7 @@ import numpy as np
 from . import certificates
 from .correctors import arc_point, curve_tangent
 from .results import PITCHFORK_CERTIFIED, Track, TrackingError
-from .step_rules import near_prediction, step_bound
+from .step_rules import near_prediction, on_one_branch, step_bound
 from .. import bounded_work
 
 
@@ -68,6 +68,7 @@ class Follower:
     def __init__(self, run, events):
         self.run = run
         self.events = events
+        self.next_tangent = None        # (y, s, tangent) where the last step ended
 
     # -- one natural step ------------------------------------------------------
     def try_step(self, y, s, tangent, ds):
@@ -83,10 +84,31 @@ class Follower:
             return None, None, 'far'
         if not run.energy_consistent(y, s, y1, s1):
             return None, None, 'energy'
+        if not self.trapezoid(y, tangent, y1, s1, ds):
+            return None, None, 'far'
         eigenvalues = run.eigenvalues(y1, s1)
         if not run.definite(eigenvalues):
             return y1, eigenvalues, 'indefinite'
         return y1, eigenvalues, ''
+
+    def trapezoid(self, y, tangent, y1, s1, ds):
+        """:func:`.step_rules.on_one_branch` for the step y -> (y1, s1); the tangent at
+        y1 is kept for the next step from there (:meth:`tangent_at`)."""
+        run = self.run
+        try:
+            tangent1 = run.tangent(y1, s1)
+        except np.linalg.LinAlgError:
+            return True                     # (singular there: the step's other tests decide)
+        self.next_tangent = (y1, s1, tangent1)
+        defect = run.step_norm(y1 - y - 0.5 * ds * (tangent + tangent1))
+        return on_one_branch(defect, run.step_norm(y1 - y), run.settings)
+
+    def tangent_at(self, y, s):
+        """The branch's tangent at (y, s): kept from the step that ended there, else solved."""
+        kept = self.next_tangent
+        if kept is not None and kept[0] is y and kept[1] == s:
+            return kept[2]
+        return self.run.tangent(y, s)
 
     def certified(self, eigenvalues, end_eigenvalues, rate, ds, remaining):
         """A step ending below the margin test, still on a minimum by the normal form."""
@@ -194,7 +216,7 @@ class Follower:
             return Stop('too many steps')
         y, s, eigenvalues = path.y, path.s, path.eigenvalues
         try:
-            tangent = run.tangent(y, s)
+            tangent = self.tangent_at(y, s)
         except np.linalg.LinAlgError:
             tangent = np.zeros_like(y)
         if path.rate is None:

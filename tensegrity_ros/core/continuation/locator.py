@@ -50,21 +50,29 @@ def shrink_bracket(test, a, b, test_a, test_b, xtol=1e-12):
     Secant estimates, each bracketed by two probes 2% of the width either side,
     so a test function that is nearly linear there (lambda_min at a simple
     crossing) shrinks the bracket ~25-fold per round.  Probes that cannot be
-    solved (a singular Jacobian right at the root) are skipped.
+    solved (a singular Jacobian right at the root) are skipped.  An end kept for
+    a second round in a row has its value halved in the secant (the Illinois rule):
+    a test function far from linear (7.8e-2 at one end of an arc step, -4.7e-4 at the
+    other, on the nearly symmetric N = 5 paper neck) otherwise moved the other end
+    ~2.5 % per round, all 60 rounds, 120 probes.
     """
+    kept = [0, 0]                           # rounds in a row each end was kept
     for _ in range(60):
         width = b - a
         if width <= xtol * max(1.0, abs(b)):
             break
-        guess = a + width * test_a / (test_a - test_b)
+        weight_a, weight_b = 0.5 ** max(kept[0] - 1, 0), 0.5 ** max(kept[1] - 1, 0)
+        guess = a + width * weight_a * test_a / (weight_a * test_a - weight_b * test_b)
         nudge = 0.02 * width
-        progress = False
+        progress, before = False, (a, b)
         for t in sorted({min(max(guess - nudge, a + nudge), b - nudge),
                          min(max(guess + nudge, a + nudge), b - nudge)}):
-            a, b, test_a, test_b, probed = _probe(test, t, a, b, test_a, test_b)
-            progress = progress or probed
+            if a < t < b:                   # (the first probe may have moved an end)
+                a, b, test_a, test_b, probed = _probe(test, t, a, b, test_a, test_b)
+                progress = progress or probed
         if not progress:
             break
+        kept = [kept[0] + 1 if a == before[0] else 0, kept[1] + 1 if b == before[1] else 0]
     return a, b, test_a, test_b
 
 

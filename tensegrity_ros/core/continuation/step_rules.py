@@ -37,6 +37,15 @@ def near_prediction(miss, reach, ds, settings):
     return miss <= 0.5 * ds * reach + settings.same_state_tol
 
 
+def on_one_branch(defect, motion, settings):
+    """The step's end lies on the branch through its start: ``defect`` (the step norm of
+    y1 - y0 - ds (t0 + t1) / 2, the tangents at both ends) is at most
+    ``trapezoid_defect`` of ``motion`` (the step norm of y1 - y0), or rounding.  A step
+    whose corrector converged onto another branch past a fold (near its prediction, the
+    energy change within the trapezoid's slack) leaves the snap in the defect."""
+    return defect <= settings.trapezoid_defect * motion + settings.same_state_tol
+
+
 def energy_consistent(energy0, energy1, energy_s0, energy_s1, ds, scale):
     """The envelope theorem: along one branch dE/ds = U_s (a jump to another breaks it)."""
     expected = 0.5 * (energy_s0 + energy_s1) * ds

@@ -316,6 +316,23 @@ def test_track_text_output(capsys):
     assert out.splitlines()[-1].startswith('final:')
 
 
+def test_track_says_which_side_of_a_symmetric_pitchfork_is_undecided(capsys):
+    """The unloaded module through its flat pitchfork at rho = L: no jump; the side it
+    buckles to is the tracker's rule, said in an ``undecided:`` line and record.  A load
+    doubles resolve (1e-9 N) picks its side: nothing undecided."""
+    code, out, err = run(capsys, 'track', '--rho', 1.5, '--to-rho', 0.5, '--F', 0)
+    assert code == 0, err
+    [line] = [x for x in out.splitlines() if x.startswith('undecided:')]
+    assert line.startswith('undecided: branch_point at s=0.500000000 rho=(1):')
+    assert 'm of rho) would decide which (below what doubles resolve)' in line
+    doc = run_json(capsys, 'track', '--rho', 1.5, '--to-rho', 0.5, '--F', 0)
+    [record] = doc['undecided']
+    assert record['kind'] == 'undecided' and record['rho'] == pytest.approx(1.0, abs=1e-9)
+    assert 0.0 < record['rho_uncertainty'] < 1e-8 and record['s_uncertainty'] > 0.0
+    assert doc['events'] == [] and abs(record['theta1']) < 1e-6
+    assert run_json(capsys, 'track', '--rho', 1.5, '--to-rho', 0.5, '--F', 1e-9)['undecided'] == []
+
+
 # ---------------------------------------------------------------------------
 # map
 

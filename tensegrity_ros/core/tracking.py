@@ -145,6 +145,21 @@ class ModulePath:
 
     def residual_s(self, y, s):
         """dF/ds = dF/dp . (end - start) at fixed angles."""
+        return np.array(self._residual_s(y, s))
+
+    def tangent(self, y, s):
+        """The branch's tangent dy/ds = -F_y^-1 F_s, in Python floats (the same arithmetic
+        as the tracker's 2 x 2 solve, without building the arrays: a step's end needs one
+        for the trapezoid rule)."""
+        h11, h12, h22 = self._hessian(y, s)
+        r0, r1 = self._residual_s(y, s)
+        det = h11 * h22 - h12 * h12
+        if det == 0.0 or not math.isfinite(det):
+            raise np.linalg.LinAlgError('singular 2x2 matrix')
+        return np.array([-((h22 * r0 - h12 * r1) / det), -((h11 * r1 - h12 * r0) / det)])
+
+    def _residual_s(self, y, s):
+        """(dF1/ds, dF2/ds) as floats."""
         rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = self.values(s)
         d_rho, d_L1, d_L2, d_ka, d_kb, d_kc, d_f3x, d_f3y, d_f4x, d_f4y, d_m1, d_m2 = self.dp_list
         t1, t2 = y[0], y[1]
@@ -159,7 +174,7 @@ class ModulePath:
         r2 = (d_L2 * inner2 + L2 * ((kb + kc) * s2 * d_rho - kc * s12 * d_L1 + rho * s2 * d_kb
                                     + (rho * s2 - L1 * s12) * d_kc - s2 * d_f4x
                                     - c2 * (d_f4y - half * d_m2)))
-        return np.array([r1, r2])
+        return r1, r2
 
     def energy(self, y, s):
         rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = self.values(s)

@@ -100,8 +100,9 @@ class Follower:
         except np.linalg.LinAlgError:
             return True                     # (singular there: the step's other tests decide)
         self.next_tangent = (y1, s1, tangent1)
-        defect = run.step_norm(y1 - y - 0.5 * ds * (tangent + tangent1))
-        return on_one_branch(defect, run.step_norm(y1 - y), run.settings)
+        step = y1 - y
+        return on_one_branch(run.step_norm(step - (0.5 * ds) * (tangent + tangent1)),
+                             run.step_norm(step), run.settings)
 
     def tangent_at(self, y, s):
         """The branch's tangent at (y, s): kept from the step that ended there, else solved."""

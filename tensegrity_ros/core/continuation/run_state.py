@@ -159,6 +159,11 @@ class RunState:
                                  s1 - s0, self.scale)
 
     def tangent(self, y, s):
+        """dy/ds along the branch: the problem's own ``tangent`` where it has one (the
+        module's, in floats), else -F_y^-1 F_s."""
+        own = getattr(self.problem, 'tangent', None)
+        if own is not None:
+            return own(y, s)
         return -solve(self.problem.jacobian(y, s), self.problem.residual_s(y, s))
 
     def eigenvalues(self, y, s):

@@ -41,8 +41,8 @@ import numpy as np
 from . import snap_command, tolerance_command
 from .core import equilibria, InvalidParameterError, ModuleParams, track_module
 from .core.start_state import start_state, upright_guess
-from .passage_records import (stack_passage_line, stack_passage_record, undecided_line,
-                              undecided_record)
+from .passage_records import (stack_passage_line, stack_passage_record, theta_text,
+                              undecided_line, undecided_record)
 from .problem import (APPLY_ORDER, DEFAULT_FIELDS, describe, describe_modules, PARAMETERS,
                       resolve_fields)
 
@@ -591,11 +591,6 @@ def stack_equilibrium_record(e):
     }
 
 
-def _theta_text(theta, names):
-    return ' '.join(f'{name} ({math.degrees(t[0]):.3f}, {math.degrees(t[1]):.3f})'
-                    for name, t in zip(names, theta))
-
-
 def _head_text(e):
     angle = round(math.degrees(e.head_angle), 3) + 0.0          # no '-0.000'
     return (f'head ({e.head_position[0]:.6g}, {e.head_position[1]:.6g}) m, '
@@ -751,7 +746,7 @@ def cmd_stack_track(args, out):
         return code
     out.write(f'path: {describe_modules(start.modules, names)}\n'
               f'  ->  {describe_modules(end.modules, names)}\n')
-    out.write(f'start ({source}): theta [deg] {_theta_text(first.theta, names)}; '
+    out.write(f'start ({source}): theta [deg] {theta_text(first.theta, names)}; '
               f'{_head_text(first)}; margin {first.stability_margin:.4g} N/m\n')
     out.writelines(stack_passage_line(p, names) for p in track.passages)
     out.writelines(undecided_line(u, names) for u in track.undecided)
@@ -761,9 +756,9 @@ def cmd_stack_track(args, out):
         note = ' (ambiguous: the two sides land differently)' if j.ambiguous else ''
         rho = ', '.join(f'{m.rho:.9g}' for m in j.stack.modules)
         out.write(f'event {i}: {j.kind} at s={j.s:.9f} rho=({rho}): theta [deg] '
-                  f'{_theta_text(j.from_theta, names)} -> lands at '
-                  f'{_theta_text(j.to_theta, names)}{note}\n')
-    out.write(f'final: theta [deg] {_theta_text(final.theta, names)}; {_head_text(final)}; '
+                  f'{theta_text(j.from_theta, names)} -> lands at '
+                  f'{theta_text(j.to_theta, names)}{note}\n')
+    out.write(f'final: theta [deg] {theta_text(final.theta, names)}; {_head_text(final)}; '
               f'{"stable" if final.stable else "UNSTABLE"}, margin '
               f'{final.stability_margin:.4g} N/m; status {track.status}'
               + (f': {track.message}' if track.message else '') + '\n')

@@ -10,7 +10,8 @@ def _angles(theta):
     return [[float(a), float(b)] for a, b in theta]
 
 
-def _theta_text(theta, names):
+def theta_text(theta, names):
+    """Every module's angles in degrees, by name (the CLI's neck lines)."""
     return ' '.join(f'{name} ({math.degrees(t[0]):.3f}, {math.degrees(t[1]):.3f})'
                     for name, t in zip(names, theta))
 
@@ -26,7 +27,7 @@ def stack_passage_record(passage):
 def stack_passage_line(passage, names):
     rho = ', '.join(f'{m.rho:.9g}' for m in passage.stack.modules)
     return (f'passed: branch_point at s={passage.s:.9f} rho=({rho}): theta [deg] '
-            f'{_theta_text(passage.theta, names)}, buckled continuously (supercritical: '
+            f'{theta_text(passage.theta, names)}, buckled continuously (supercritical: '
             f'no jump)\n')
 
 
@@ -54,6 +55,6 @@ def undecided_line(undecided, names=('m0',)):
     rho = ', '.join(f'{m.rho:.9g}' for m in modules)
     span = f' ({max(spans):.2g} m of rho)' if max(spans) > 0.0 else ''
     return (f'undecided: branch_point at s={undecided.s:.9f} rho=({rho}): theta [deg] '
-            f'{_theta_text(theta, names)}, passed continuously to one side; an imperfection '
+            f'{theta_text(theta, names)}, passed continuously to one side; an imperfection '
             f'within {undecided.s_uncertainty:.2g} of the path{span} would decide which '
             f'(below what doubles resolve)\n')

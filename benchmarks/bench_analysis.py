@@ -13,8 +13,8 @@ import time
 import numpy as np
 
 from tensegrity_ros.core.analysis import degenerate_curves, operation_range, two_stable_limit
-from tensegrity_ros.core.equilibria import equilibria
-from tensegrity_ros.core.module import ModuleParams
+from tensegrity_ros.core.module.equilibria import equilibria
+from tensegrity_ros.core.module.model import ModuleParams
 
 
 def timed(fn, repeat):

@@ -39,7 +39,7 @@ def worker(root, limit, reference=False):
     sys.path.insert(0, str(root))
     sys.path.insert(1, str(HERE / 'test'))
     from neck_path_families import paths
-    from tensegrity_ros.core.stack import settle_stack, track_stack
+    from tensegrity_ros.core.neck.stack import settle_stack, track_stack
     signal.signal(signal.SIGALRM, _too_long)
     if reference:
         sys.path.insert(1, str(HERE / 'benchmarks'))

@@ -77,7 +77,7 @@ def relay_callback(publisher, modules):
 
 def _ros_layer_alone(node, callback, commands):
     """Per-command times (us) of the node callback with the simulator call answering at once."""
-    from tensegrity_ros.core.events import Outcome
+    from tensegrity_ros.core.simulation.events import Outcome
     accepted = Outcome()
     node.simulator.command_rhos = lambda *args, **kwargs: accepted   # this instance only
     try:
@@ -114,7 +114,7 @@ def measure(config, count):
     import rclpy
     from sensor_msgs.msg import JointState
 
-    from tensegrity_ros.core.simulator import Simulator
+    from tensegrity_ros.core.simulation.simulator import Simulator
     from tensegrity_ros.node import TensegrityNode
 
     rclpy.init(args=['bench', '--ros-args', '--params-file', str(config),

@@ -4,7 +4,7 @@
 What a user types (issue 10): seeded streams of actuator targets from 0.05 to 0.15 m in
 steps of 1 cm (one module, or all three at once) and head loads (-10 .. +1 N), 15
 commands per stream, each from where the last one left the neck, through the core
-:class:`~tensegrity_ros.core.simulator.Simulator` (no ROS) with no time budget, so every
+:class:`~tensegrity_ros.core.simulation.simulator.Simulator` (no ROS) with no time budget, so every
 command is one deterministic call.  A stream's commands are drawn up front, so one
 stream does not depend on where an earlier one stopped.  A command that stops early is
 a tracking failure (state kept, the reason in its text); they are counted by reason,
@@ -34,9 +34,9 @@ import time
 
 import numpy as np
 
-from tensegrity_ros.core.events import TrackingFailure
-from tensegrity_ros.core.simulator import ModuleLimits, Simulator
-from tensegrity_ros.core.stack import Stack, track_stack
+from tensegrity_ros.core.neck.stack import Stack, track_stack
+from tensegrity_ros.core.simulation.events import TrackingFailure
+from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
 from tensegrity_ros.params_file import load_stack_config
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')

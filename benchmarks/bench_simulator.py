@@ -13,7 +13,7 @@ import time
 
 from tensegrity_ros.core import ModuleParams, settle, track_module
 from tensegrity_ros.core.analysis import operation_range
-from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
 
 START = ModuleParams.paper(0.8)
 RHOS = [0.8 + 0.1 * math.sin(i * 0.01) for i in range(1000)]

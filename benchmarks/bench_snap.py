@@ -45,7 +45,7 @@ TICK = 0.02
 def _problem(name):
     """(modules, start angles, limits, damping, (index, rho), ticks) of a live scenario."""
     from tensegrity_ros.core import ModuleParams
-    from tensegrity_ros.core.simulator import ModuleLimits
+    from tensegrity_ros.core.simulation.simulator import ModuleLimits
     if name == 'module':
         p = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)
         return [p], [[-1.0, -1.0]], [ModuleLimits(0.05, 1.95, 0.1)], [0.05], (0, 0.9), 800
@@ -65,7 +65,7 @@ def _problem(name):
 
 def live_costs(name):
     """{'sim_cpu', 'sim_wall', 'bare_cpu', 'bare_wall', 'simulated'}: one run of each."""
-    from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
+    from tensegrity_ros.core.simulation.dynamic_simulator import DynamicSimulator
     modules, start, limits, damping, (index, rho), ticks = _problem(name)
     sim = DynamicSimulator(modules, start, limits, damping=damping)
     n = len(modules)
@@ -87,9 +87,9 @@ def live_costs(name):
 
 def _bare(name, settings=None):
     """The bare live loop of a scenario, commanded at t = 0."""
-    from tensegrity_ros.core.moving_module import MovingModule
-    from tensegrity_ros.core.moving_neck import MovingNeck
-    from tensegrity_ros.core.stack import Stack
+    from tensegrity_ros.core.dynamics.moving_module import MovingModule
+    from tensegrity_ros.core.dynamics.moving_neck import MovingNeck
+    from tensegrity_ros.core.neck.stack import Stack
     modules, start, limits, damping, (index, rho), _ = _problem(name)
     extra = {} if settings is None else {'settings': settings}
     if len(modules) == 1:
@@ -105,7 +105,7 @@ def _bare(name, settings=None):
 
 def accuracy(name):
     """max |theta - theta_ref| (rad) over the ticks, the reference at rtol 1e-13."""
-    from tensegrity_ros.core.transient import SolverSettings
+    from tensegrity_ros.core.dynamics.transient import SolverSettings
     ticks = _problem(name)[-1]
     runs = []
     for settings in (None, SolverSettings(rtol=1e-13, atol=1e-15)):

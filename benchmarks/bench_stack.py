@@ -39,8 +39,8 @@ import numpy as np
 from scipy.optimize import root
 
 from tensegrity_ros.core import continuation, ModuleParams, track_module
-from tensegrity_ros.core.stack import _end_record, settle_stack, Stack, StackPath, track_stack
-from tensegrity_ros.core.stack_fast_step import _dgesv, _dgetrf, _start_point
+from tensegrity_ros.core.neck.fast_step import _dgesv, _dgetrf, _start_point
+from tensegrity_ros.core.neck.stack import _end_record, settle_stack, Stack, StackPath, track_stack
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 # the "before"; I100: it cannot sort with the imports above, it needs test/ on sys.path first

@@ -62,7 +62,7 @@ def client_cost(design, question, tols, n):
     """The command's own work around the chunks: seconds per sample to draw the samples up
     front and summarise them (statistics), and the fixed seconds of the worst samples'
     replays (each worst sample run once more, leg by leg)."""
-    from tensegrity_ros.core.tolerance_sampling import unit_samples
+    from tensegrity_ros.core.tolerance.sampling import unit_samples
     from tensegrity_ros.tolerance import parse_tolerances
     t0 = time.perf_counter()
     unit_samples(n, len(parse_tolerances(tols, design)), 'sobol', 1)

@@ -1,6 +1,6 @@
 """Worst single simulator call on hard in-range inputs (issue 10: bounded work per command).
 
-Every case builds a :class:`~tensegrity_ros.core.simulator.Simulator` (not timed) and
+Every case builds a :class:`~tensegrity_ros.core.simulation.simulator.Simulator` (not timed) and
 sends one or a few hard commands: rho jumps across folds and branch points, forces at
 the largest supported load (load/(k L) = 1e4), head-load ramps on necks of 3 and 10
 paper modules (one with m0 ka = 100.0000001, which buckles near-continuously),
@@ -26,8 +26,9 @@ import time
 
 import numpy as np
 
-from tensegrity_ros.core import ModuleParams, simulator as simulator_module
-from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+from tensegrity_ros.core import ModuleParams
+from tensegrity_ros.core.simulation import simulator as simulator_module
+from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
 
 TICK_NS = 10_000_000            # simulated time between calls (a 100 Hz timer)
 MAX_CALLS = 100_000             # a case that needs more is reported as not finished

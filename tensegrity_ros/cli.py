@@ -40,9 +40,9 @@ import numpy as np
 
 from . import snap_command, tolerance_command
 from .core import equilibria, InvalidParameterError, ModuleParams, track_module
-from .core.start_state import start_state, upright_guess
-from .passage_records import (stack_passage_line, stack_passage_record, theta_text,
-                              undecided_line, undecided_record)
+from .core.simulation.start_state import start_state, upright_guess
+from .passage_records import (stack_passage_line, stack_passage_record, theta_text, undecided_line,
+                              undecided_record)
 from .problem import (APPLY_ORDER, DEFAULT_FIELDS, describe, describe_modules, PARAMETERS,
                       resolve_fields)
 
@@ -557,7 +557,7 @@ def _override(fields_list, values, rhos):
 
 
 def _make_stack(fields_list, names):
-    from .core.stack import Stack
+    from .core.neck.stack import Stack
     modules = []
     for name, fields in zip(names, fields_list):
         if fields.get('rho') is None:
@@ -599,7 +599,7 @@ def _head_text(e):
 
 def exact_stack_equilibria(stack):
     """(records sorted by energy, status) of a one-module stack from the exact solver."""
-    from .core.stack import stack_equilibrium_at, StackPath
+    from .core.neck.stack import stack_equilibrium_at, StackPath
     result = equilibria(stack.modules[0])
     path = StackPath(stack, stack)
     records = [stack_equilibrium_at(stack, path.state_from_angles([[e.theta1, e.theta2]], 0.0))
@@ -610,7 +610,7 @@ def exact_stack_equilibria(stack):
 def cmd_stack_solve(args, out):
     import time
 
-    from .core.stack import stack_equilibria
+    from .core.neck.stack import stack_equilibria
     spec = _stack_spec(args)
     if args.rho is not None and args.rhos is not None:
         raise UsageError('give --rho (every module) or --rhos (one per module), not both')
@@ -705,7 +705,7 @@ def stack_jump_record(jump):
 
 
 def cmd_stack_track(args, out):
-    from .core.stack import settle_stack, track_stack
+    from .core.neck.stack import settle_stack, track_stack
     spec = _stack_spec(args)
     if args.rho is not None and args.rhos is not None:
         raise UsageError('give --rho (every module) or --rhos (one per module), not both')

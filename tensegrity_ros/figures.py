@@ -8,7 +8,7 @@ Maps count the stable equilibria over a grid of two parameters with the
 vectorised exact solver :func:`~tensegrity_ros.core.equilibria_batch`, in chunks,
 on several processes for large grids.
 
-Diagrams solve every equilibrium (:func:`~tensegrity_ros.core.equilibria`) on a
+Diagrams solve every equilibrium (:func:`~tensegrity_ros.core.module.equilibria`) on a
 rho grid, locate every change in the number of equilibria and every change of
 stability by bisection (to ~1e-9 of the rho range), connect the equilibria of
 neighbouring rho values into branches (minimum-cost assignment on the torus),
@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from .core import equilibria, equilibria_batch, ModuleParams, track_module
-from .core.start_state import start_state
+from .core.simulation.start_state import start_state
 from .problem import describe, resolve_fields
 
 #: Points per chunk of a map (measured: ~20k points minimise the cost per point).

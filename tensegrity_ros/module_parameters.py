@@ -11,8 +11,8 @@ from __future__ import annotations
 import math
 
 from tensegrity_ros.core import InvalidParameterError, ModuleParams
-from tensegrity_ros.core.simulator import ModuleLimits
-from tensegrity_ros.core.supported_range import check_supported
+from tensegrity_ros.core.module.supported_range import check_supported
+from tensegrity_ros.core.simulation.simulator import ModuleLimits
 from tensegrity_ros.log_text import shown
 
 # Kinds of per-module parameters: what a runtime change does.

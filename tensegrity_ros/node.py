@@ -1,13 +1,13 @@
 """The ``tensegrity_node``: the ROS layer around the core simulator (interface: msg_docs/).
 
 What the mechanism does -- targets, speed limits, loads, parameter changes, reset,
-tracking, jumps, verification -- is decided by :class:`tensegrity_ros.core.simulator.
+tracking, jumps, verification -- is decided by :class:`tensegrity_ros.core.simulation.simulator.
 Simulator` (one module or a neck, one code path, tested without ROS).  This node only maps:
 
 * parameters -> the simulator's configuration (:mod:`tensegrity_ros.node_parameters`; the
   callbacks that check, apply and read them back: :mod:`tensegrity_ros.parameter_handling`);
 * messages -> simulator calls (``<m>/rho_cmd``, ``<m>/force_a3/a4``, ``joint_commands``,
-  ``joint_trajectory`` through the core's :class:`~tensegrity_ros.core.trajectory.
+  ``joint_trajectory`` through the core's :class:`~tensegrity_ros.core.simulation.trajectory.
   TrajectoryPlayer`, runtime parameter sets, the ``~/reset`` service, the timer);
 * the calls' outcomes -> rejections counted in ``/diagnostics``, ``~/jumps`` and
   ``~/motion`` messages, logs; the simulator's state -> ``joint_states``, ``~/equilibrium``,
@@ -54,13 +54,13 @@ from visualization_msgs.msg import MarkerArray
 
 from tensegrity_ros import (node_parameters as params, node_process as process,
                             ros_conversions as conv)
-from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog, force_key,
-                                                    target_key)
-from tensegrity_ros.core.events import (Deferred, FAILED, Jump, JumpAhead, Passage,
-                                        TrackingFailure, Undecided)
-from tensegrity_ros.core.frames import chord_frames
-from tensegrity_ros.core.stack import Stack
-from tensegrity_ros.core.trajectory import ABORTED, MotionEnded, TrajectoryPlayer
+from tensegrity_ros.core.neck.frames import chord_frames
+from tensegrity_ros.core.neck.stack import Stack
+from tensegrity_ros.core.simulation.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog,
+                                                               force_key, target_key)
+from tensegrity_ros.core.simulation.events import (Deferred, FAILED, Jump, JumpAhead, Passage,
+                                                   TrackingFailure, Undecided)
+from tensegrity_ros.core.simulation.trajectory import ABORTED, MotionEnded, TrajectoryPlayer
 from tensegrity_ros.joint_state_names import exact_names, NamesAndPositions
 from tensegrity_ros.log_text import clipped, shown
 from tensegrity_ros.node_live_state import LiveStateReports
@@ -712,7 +712,7 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
 
     def module_state(self, name='m0'):
         """(live ModuleParams, live verified view) of a module: an ``Equilibrium`` for one
-        module, a :class:`~tensegrity_ros.core.mechanisms.ModuleView` in a stack."""
+        module, a :class:`~tensegrity_ros.core.simulation.mechanisms.ModuleView` in a stack."""
         return self._sim.module(self._names.index(name))
 
     def stack_state(self):

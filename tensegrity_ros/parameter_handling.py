@@ -26,8 +26,8 @@ from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterVal
 from rclpy.parameter import Parameter
 
 from tensegrity_ros import node_parameters as params
-from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
-from tensegrity_ros.core.simulator import Simulator
+from tensegrity_ros.core.simulation.dynamic_simulator import DynamicSimulator
+from tensegrity_ros.core.simulation.simulator import Simulator
 from tensegrity_ros.log_text import shown
 
 _MODULE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')

@@ -69,7 +69,7 @@ class StackConfig:
         return [m.name for m in self.modules]
 
     def stack(self):
-        from .core.stack import Stack
+        from .core.neck.stack import Stack
         return Stack(tuple(m.params for m in self.modules))
 
     @property

@@ -19,7 +19,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from tensegrity_ros.core.trajectory import ABORTED, Trajectory
+from tensegrity_ros.core.simulation.trajectory import ABORTED, Trajectory
 
 OK = DiagnosticStatus.OK
 WARN = DiagnosticStatus.WARN
@@ -144,7 +144,8 @@ LEVELS = {'ok': OK, 'warn': WARN, 'error': ERROR}
 
 def equilibrium_status(*, name, hardware_id, module, status):
     """``equilibrium`` DiagnosticStatus of one module from its simulator
-    :class:`~tensegrity_ros.core.simulator.ModuleStatus` (values: msg_docs/equilibrium.md)."""
+    :class:`~tensegrity_ros.core.simulation.simulator.ModuleStatus` (values:
+    msg_docs/equilibrium.md)."""
     msg = DiagnosticStatus(level=LEVELS[status.level], name=name, message=status.message,
                            hardware_id=hardware_id)
     msg.values = key_values(_equilibrium_pairs(module, status))
@@ -262,7 +263,7 @@ def _jump_message(*, name, hardware_id, jump, params, module, from_theta, to_the
 
 def jump_status(*, name, hardware_id, modules, jump):
     """One ``jumps`` message (msg_docs/jumps.md) from a simulator
-    :class:`~tensegrity_ros.core.events.Jump`.
+    :class:`~tensegrity_ros.core.simulation.events.Jump`.
 
     ``modules``: every module's name, bottom to top.  ``rho``, ``from_theta1/2``,
     ``to_theta1/2`` and the forces are those of the module whose command caused the jump;
@@ -298,7 +299,7 @@ def jump_status(*, name, hardware_id, modules, jump):
 
 def undecided_status(*, name, hardware_id, modules, undecided):
     """One ``jumps`` message of kind ``undecided`` (msg_docs/jumps.md) from a simulator
-    :class:`~tensegrity_ros.core.events.Undecided`: a branch point passed continuously
+    :class:`~tensegrity_ros.core.simulation.events.Undecided`: a branch point passed continuously
     whose side doubles cannot decide.  ``rho``, ``rho_uncertainty``, ``theta1/2`` and the
     forces are the commanding module's, ``s_uncertainty`` the command path's; a neck adds
     every module's ``<m>_rho``, ``<m>_rho_uncertainty`` and ``<m>_theta1/2``."""
@@ -460,7 +461,7 @@ class FrameChain:
 
 
 def trajectory(msg, joints):
-    """A core :class:`~tensegrity_ros.core.trajectory.Trajectory` of a
+    """A core :class:`~tensegrity_ros.core.simulation.trajectory.Trajectory` of a
     ``trajectory_msgs/JointTrajectory`` whose joint names are the modules ``joints``
     (indices), or (reason, text) if its arrays do not fit the names.  Positions only:
     velocities, accelerations and effort may be given (of the names' size) but are not
@@ -487,7 +488,8 @@ def trajectory(msg, joints):
 
 class MotionStatusBuffer:
     """The ``~/motion`` DiagnosticStatus (msg_docs/motion.md) of the trajectory player's
-    :class:`~tensegrity_ros.core.trajectory.MotionStatus`, made again only when it changed."""
+    :class:`~tensegrity_ros.core.simulation.trajectory.MotionStatus`, made again only when it
+    changed."""
 
     def __init__(self):
         self.msg = None

@@ -31,13 +31,13 @@ import os
 
 import numpy as np
 
-from .core.module import InvalidParameterError, PARAMETER_NAMES, STANDARD_GRAVITY
-from .core.tolerance_questions import (code_fingerprint, evaluate_chunk, HeadLoad, KIND_NAMES,
+from .core.module.model import InvalidParameterError, PARAMETER_NAMES, STANDARD_GRAVITY
+from .core.tolerance.questions import (code_fingerprint, evaluate_chunk, HeadLoad, KIND_NAMES,
                                        OperatingRange, PlannedPath, STATUS_NAMES)
-from .core.tolerance_sampling import (parse_spread, sample_waypoints, SAMPLERS, Tolerance,
+from .core.tolerance.sample_statistics import (describe_figure, event_probability, noise_level,
+                                               rank_correlation_tables, tally)
+from .core.tolerance.sampling import (parse_spread, sample_waypoints, SAMPLERS, Tolerance,
                                       unit_samples)
-from .core.tolerance_statistics import (describe_figure, event_probability, noise_level,
-                                        rank_correlation_tables, tally)
 from .problem import APPLY_ORDER, DEFAULT_FIELDS, PARAMETERS
 
 QUESTIONS = ('range', 'path', 'head-load')
@@ -147,7 +147,7 @@ def _stops(first, legs, names):
 
 
 def _check_stops(stops, g):
-    from .core.module import InvalidParameterError, ModuleParams
+    from .core.module.model import InvalidParameterError, ModuleParams
     for k, stop in enumerate(stops):
         for i, f in enumerate(stop):
             try:

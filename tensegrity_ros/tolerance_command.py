@@ -15,8 +15,8 @@ import argparse
 import os
 import sys
 
-from .core.tolerance_sampling import SAMPLERS
-from .core.tolerance_statistics import INTERVALS
+from .core.tolerance.sample_statistics import INTERVALS
+from .core.tolerance.sampling import SAMPLERS
 from .tolerance import (module_design, neck_design, QUESTIONS, tolerance_study, ToleranceError,
                         write_text_file)
 

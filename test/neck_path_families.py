@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from tensegrity_ros.core import equilibria, ModuleParams
-from tensegrity_ros.core.stack import Stack
+from tensegrity_ros.core.neck.stack import Stack
 
 FAMILIES = ('rho', 'all', 'head', 'limit', 'perfect', 'imperfect')
 

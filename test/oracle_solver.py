@@ -1,6 +1,6 @@
 """An independent brute-force equilibrium solver (the test oracle).
 
-It shares nothing with ``tensegrity_ros.core.equilibria``: the equilibrium
+It shares nothing with ``tensegrity_ros.core.module.equilibria``: the equilibrium
 equations are derived here again from the node geometry (virtual work:
 dU/dt_i = -(net force on the node) . d(node)/dt_i), solved with
 ``scipy.optimize.root`` from a regular grid of starts on the torus, polished

@@ -4,7 +4,7 @@
 State y = [moving node coordinates (4N), multipliers of every rigid length: both rods
 of every module and every chord (3N - 1)].  Energy and constraints are quadratic in
 the coordinates; stability is the reduced Hessian on the tangent space of all rigid
-lengths, in N/m.  Same contract as :class:`tensegrity_ros.core.stack.StackPath`
+lengths, in N/m.  Same contract as :class:`tensegrity_ros.core.neck.stack.StackPath`
 (a tracker PathProblem), so ``continuation.track`` runs on it unchanged.
 """
 from __future__ import annotations
@@ -15,10 +15,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tensegrity_ros.core.module import InvalidParameterError, PARAMETER_NAMES
+from tensegrity_ros.core.module.model import InvalidParameterError, PARAMETER_NAMES
 
 if TYPE_CHECKING:       # the annotations' Stack only: the reference uses none of its code
-    from tensegrity_ros.core.stack import Stack
+    from tensegrity_ros.core.neck.stack import Stack
 
 _P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
 _FIXED = 2

@@ -13,8 +13,8 @@ import pytest
 
 from tensegrity_ros.core.analysis import (BRANCH_POINT, Curve, degenerate_curves, FOLD, LIMIT,
                                           operation_range, OperationRange, two_stable_limit)
-from tensegrity_ros.core.equilibria import equilibria, equilibria_batch
-from tensegrity_ros.core.module import gradient, hessian, InvalidParameterError, ModuleParams
+from tensegrity_ros.core.module.equilibria import equilibria, equilibria_batch
+from tensegrity_ros.core.module.model import gradient, hessian, InvalidParameterError, ModuleParams
 
 K = 100.0
 

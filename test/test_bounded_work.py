@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.bounded_work import Budget, checkpoint, Job
-from tensegrity_ros.core.events import Deferred, Jump, TrackingFailure
-from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+from tensegrity_ros.core.numerics.bounded_work import Budget, checkpoint, Job
+from tensegrity_ros.core.simulation.events import Deferred, Jump, TrackingFailure
+from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
 
 #: Counting clocks (check points, evaluations): `make test-numerics` runs it under other CPUs'
 #: arithmetic, where the work a path takes may differ.
@@ -283,7 +283,7 @@ def test_a_long_reset_spans_calls_keeping_the_old_state_meanwhile():
 
 def test_a_deferred_reset_that_finds_no_minimum_is_a_failure_keeping_the_state(monkeypatch):
     from tensegrity_ros.core import TrackingError
-    import tensegrity_ros.core.mechanisms as mechanisms
+    import tensegrity_ros.core.simulation.mechanisms as mechanisms
 
     def slow_failure(modules, thetas):
         counted(50)()

@@ -18,7 +18,7 @@ from neck_path_families import paper_neck, upright
 from reference_paths import angle_distance, flow_to_rest, NeckSystem
 from tensegrity_ros.core.continuation import lander
 from tensegrity_ros.core.continuation.normal_form import THROUGH
-from tensegrity_ros.core.stack import track_stack
+from tensegrity_ros.core.neck.stack import track_stack
 
 pytestmark = pytest.mark.numerics
 

@@ -501,7 +501,7 @@ def test_stack_solve_json_schema(capsys, argv, rhos):
     for e in eqs:
         _check_stack_equilibrium(e, n, rhos)
     # the stable equilibria are where an independent settle from them stays
-    from tensegrity_ros.core.stack import settle_stack, Stack
+    from tensegrity_ros.core.neck.stack import settle_stack, Stack
     stack = Stack(tuple(ModuleParams(**p) for p in params))
     for e in [e for e in eqs if e['stable']][:2]:
         again = settle_stack(stack, np.array(e['theta']) + 1e-3)

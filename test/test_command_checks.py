@@ -8,7 +8,7 @@ import math
 from hypothesis import given, settings, strategies as st
 
 from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
 
 LIMITS = ModuleLimits(rho_min=0.05, rho_max=1.95)
 VALUES = st.one_of(st.floats(allow_nan=True, allow_infinity=True),

@@ -9,8 +9,9 @@ against the rule read position by position.
 from hypothesis import given, settings, strategies as st
 import pytest
 
-from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog, force_key,
-                                                    LatestCommands, target_key)
+from tensegrity_ros.core.simulation.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog,
+                                                               force_key, LatestCommands,
+                                                               target_key)
 
 KEYS = st.sampled_from([target_key([0]), target_key([1]), target_key([0, 2]),
                         force_key(0, 'a3'), force_key(0, 'a4'), force_key(1, 'a3')])

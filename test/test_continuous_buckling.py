@@ -17,9 +17,9 @@ from scipy.optimize import brentq
 
 from tensegrity_ros.core import equilibria, ModuleParams, track_module
 from tensegrity_ros.core.continuation import TrackerSettings
-from tensegrity_ros.core.stack import settle_stack, Stack, StackPath, track_stack
-from tensegrity_ros.core.start_state import upright_guess
-from tensegrity_ros.core.tolerances import verified_minimum
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, StackPath, track_stack
+from tensegrity_ros.core.numerics.tolerances import verified_minimum
+from tensegrity_ros.core.simulation.start_state import upright_guess
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics
@@ -365,8 +365,9 @@ def test_a_tracked_module_state_verified_by_the_margin_test_reads_stable():
     ``stable`` and ``equilibrium``) shows it stable, near a jump; before, an ok command
     there left the node at ERROR "not a stable equilibrium".  A solver root at the same
     parameters is not tracker-verified: it still reads degenerate, not stable."""
-    from tensegrity_ros.core.simulator import ModuleLimits, Simulator
-    from tensegrity_ros.core.tolerances import DEFINITENESS_TOL, DEGENERACY_TOL, MARGIN_CERTIFIED
+    from tensegrity_ros.core.numerics.tolerances import (DEFINITENESS_TOL, DEGENERACY_TOL,
+                                                         MARGIN_CERTIFIED)
+    from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
     for rho in (1.0 + 2e-9, 1.0 + 1e-8, 1.0 - 1e-9):
         exact = np.linalg.eigvalsh(module_hessian_upright(rho)) if rho > 1.0 else None
         if exact is not None:
@@ -405,7 +406,7 @@ def test_a_command_ending_exactly_at_the_branch_point_ends_on_it():
     onto theta = 0.  (Before, the command failed on the last verified state ~1e-9 in rho
     short, and from 1.0 the buckled side was lost: a command 1e-9 .. 1e-5 down jumped onto
     the mirror image, or ran out of time.)"""
-    from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+    from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
     assert np.linalg.eigvalsh(module_hessian_upright(1.0))[0] == 0.0
     at = ModuleParams.paper(1.0)
     # (0.51 and 0.99 on the buckled branch: the normal form's linear law put the branch

@@ -4,7 +4,7 @@ import sys
 
 
 def test_importing_core_does_not_import_rclpy():
-    code = ('import sys, tensegrity_ros.core, tensegrity_ros.core.equilibria; '
+    code = ('import sys, tensegrity_ros.core, tensegrity_ros.core.module.equilibria; '
             'bad = sorted(m for m in sys.modules if m.split(".")[0] in '
             '("rclpy", "std_msgs", "sensor_msgs", "geometry_msgs", "diagnostic_msgs")); '
             'print(bad); sys.exit(1 if bad else 0)')

@@ -16,7 +16,7 @@ from oracle_solver import oracle_equilibria
 from reference_paths import angle_distance, flow_to_rest, NeckSystem
 from tensegrity_ros.core import ModuleParams, settle, track_module
 from tensegrity_ros.core.continuation import TrackerSettings
-from tensegrity_ros.core.stack import settle_stack, StackPath, track_stack
+from tensegrity_ros.core.neck.stack import settle_stack, StackPath, track_stack
 
 #: A generous bound on one command's work: the cases below take ~30 ms; on 8db3247 the
 #: first one never returned (its landing and the next step's fold alternated for ever).

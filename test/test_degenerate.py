@@ -348,7 +348,7 @@ def test_near_fold_with_unresolved_polynomial_roots():
 
 def test_batch_blocks_join_seamlessly():
     """A batch larger than one block gives exactly what block-sized calls give."""
-    from tensegrity_ros.core.equilibria import BATCH_BLOCK, equilibria_batch
+    from tensegrity_ros.core.module.equilibria import BATCH_BLOCK, equilibria_batch
     rng = np.random.default_rng(5)
     n = 2 * BATCH_BLOCK + 17
     args = {'rho': rng.uniform(0.05, 2, n), 'f3y': rng.uniform(-10, 10, n),
@@ -382,7 +382,7 @@ def test_batch_solves_generic_rows_itself_and_agrees_with_the_scalar_solver(monk
     instead of failing Newton and marking its row delicate); where it answers, it
     answers what the scalar solver does."""
     import importlib
-    eq_module = importlib.import_module('tensegrity_ros.core.batch_solver')
+    eq_module = importlib.import_module('tensegrity_ros.core.module.batch_solver')
     rng = np.random.default_rng(11)
     n = 20_000
     args = {'rho': rng.uniform(0.01, 3, n), 'L1': rng.uniform(0.2, 3, n),
@@ -431,7 +431,7 @@ def test_batch_detects_lost_roots(monkeypatch, p):
     pruning is limited to isolated roots, see CANDIDATE_RATIO.)"""
     import importlib
     import itertools
-    eq_module = importlib.import_module('tensegrity_ros.core.batch_solver')
+    eq_module = importlib.import_module('tensegrity_ros.core.module.batch_solver')
     s = equilibria(p)
     candidate_limit = eq_module._candidate_limit
     lost = []

@@ -14,7 +14,7 @@ from scipy.integrate import cumulative_trapezoid, solve_ivp
 from scipy.optimize import fsolve
 
 from tensegrity_ros.core import InvalidParameterError, ModuleParams
-from tensegrity_ros.core.dynamics import simulate_snap, SolverSettings
+from tensegrity_ros.core.dynamics.module_snap import simulate_snap, SolverSettings
 
 G = 9.80665
 MASS = 0.05                                   # kg per rod, as in the issue's reference
@@ -353,7 +353,7 @@ def test_a_bump_of_the_computed_energy_after_it_settled_does_not_move_the_settli
     (an integration error: on the Haswell kernel a restart of the held integration once
     kicked fig. 8a's energy from 2.6e-15 to 2.3e-13 J, 7 s after it had settled) must not
     move it.  Fails before (the last exit: 7.0 s instead of 2 ln 10 = 4.6052 s)."""
-    from tensegrity_ros.core.transient import figures, Rest
+    from tensegrity_ros.core.dynamics.transient import figures, Rest
 
     def energy(t):            # e^(-t) falls through 1e-2 at t = 2 ln 10; a bump at 7 s
         t = np.asarray(t, dtype=float)

@@ -6,8 +6,8 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from hypothesis import given, settings, strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 
-from tensegrity_ros.core.module import ModuleParams
-from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+from tensegrity_ros.core.module.model import ModuleParams
+from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
 from tensegrity_ros.ros_conversions import equilibrium_status, EquilibriumStatusBuffer
 
 NECK = [ModuleParams(rho=r, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02,

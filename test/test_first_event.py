@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core.continuation import TrackerSettings
-from tensegrity_ros.core.module import ModuleParams
-from tensegrity_ros.core.polynomial_solver import equilibria
-from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
-from tensegrity_ros.core.start_state import start_state
-from tensegrity_ros.core.tracking import track_module
+from tensegrity_ros.core.module.model import ModuleParams
+from tensegrity_ros.core.module.polynomial_solver import equilibria
+from tensegrity_ros.core.module.tracking import track_module
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, track_stack
+from tensegrity_ros.core.simulation.start_state import start_state
 
 FIRST = TrackerSettings(stop_at_first_event=True)
 
@@ -69,7 +69,7 @@ def test_nested_runs_do_not_inherit_the_setting():
     """A landing's own runs (followed back to its event, a buckled branch) read their
     events past the first one: sub_run clears the flag."""
     from tensegrity_ros.core.continuation.run_state import RunState
-    from tensegrity_ros.core.tracking import ModulePath
+    from tensegrity_ros.core.module.tracking import ModulePath
 
     captured = []
 

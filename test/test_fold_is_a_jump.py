@@ -24,8 +24,8 @@ from reference_paths import angle_distance, ModuleSystem, quasi_static_path
 from tensegrity_ros.core.continuation import normal_form
 from tensegrity_ros.core.continuation.run_state import RunState
 from tensegrity_ros.core.continuation.settings import TrackerSettings
-from tensegrity_ros.core.module import ModuleParams
-from tensegrity_ros.core.tracking import ModulePath, track_module
+from tensegrity_ros.core.module.model import ModuleParams
+from tensegrity_ros.core.module.tracking import ModulePath, track_module
 
 #: The reference's largest step motion (rad) on these paths (its default, 0.02, is more
 #: than the snaps).

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.frames import chord_frames, PlanarTransform
-from tensegrity_ros.core.simulator import Simulator
+from tensegrity_ros.core.neck.frames import chord_frames, PlanarTransform
+from tensegrity_ros.core.simulation.simulator import Simulator
 from tensegrity_ros.params_file import load_stack_config
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -31,7 +31,7 @@ from node_spring_flow import NodeSpringNeck, rest_point
 from reference_paths import (angle_distance, FIELDS, NeckSystem, quasi_static_path, Undecided,
                              work_budget)
 from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, track_stack
 from test_reference_tracking import assert_same_neck_path, assert_same_passages, on_either_side
 
 PATHS = 4

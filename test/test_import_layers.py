@@ -1,7 +1,8 @@
 """The package's import arrows all point down (README, "Package layout"): no cycles, the
 core imports nothing outside it, figures never import the command line, and only the
 ROS layer (node, node_parameters, parameter_handling, node_process, ros_conversions)
-imports rclpy or messages."""
+imports rclpy or messages.  Within the core, the concept folders are layers too: a module
+imports its own folder and the folders below it, never one above."""
 import ast
 import pathlib
 import sys
@@ -87,7 +88,38 @@ def test_core_imports_only_core_the_standard_library_numpy_scipy():
 #: The one module that imports numba (numba_kernels): it compiles the kernels of the neck's
 #: equations of motion (the live loop's inner loop) and of its elastic gradient flow (a
 #: batch question's); see their docstrings for the numpy figures.
-COMPILED = {'tensegrity_ros.core.numba_kernels': {'numba'}}
+COMPILED = {'tensegrity_ros.core.numerics.numba_kernels': {'numba'}}
+
+
+#: The core's concept folders, bottom up (docs/architecture.md says why this order).
+CORE_FOLDERS = ('numerics', 'continuation', 'module', 'analysis', 'neck', 'dynamics',
+                'simulation', 'tolerance')
+
+
+def _core_folder(name):
+    """The concept folder of a core module, or None for the core's own top-level files
+    (its public front door and the deprecated aliases of moved paths)."""
+    parts = name.split('.')
+    return parts[2] if len(parts) > 2 and parts[2] in CORE_FOLDERS else None
+
+
+def test_core_folders_import_only_their_own_folder_and_those_below():
+    for name, (inside, _) in GRAPH.items():
+        folder = _core_folder(name)
+        if not name.startswith('tensegrity_ros.core') or folder is None:
+            continue
+        level = CORE_FOLDERS.index(folder)
+        for dep in inside:
+            below = _core_folder(dep)
+            assert below is not None and CORE_FOLDERS.index(below) <= level, (
+                f'{_short(name)} ({folder}) imports {_short(dep)} ({below or "core top level"})')
+
+
+def test_every_core_module_lives_in_a_concept_folder():
+    from tensegrity_ros.core.moved_modules import MOVED
+    loose = {name for name in MODULES if name.startswith('tensegrity_ros.core.')
+             and _core_folder(name) is None}
+    assert loose == set(MOVED) | {'tensegrity_ros.core.moved_modules'}, loose
 
 
 @pytest.mark.parametrize('tool', ['figures', 'problem', 'params_file', 'module_parameters'])

@@ -13,7 +13,7 @@ import pytest
 from tensegrity_ros.core import (actuator_force, energy, equilibria, equilibria_batch, gradient,
                                  hessian, InvalidParameterError, ModuleParams, node_positions,
                                  PARAMETER_NAMES, STANDARD_GRAVITY)
-from tensegrity_ros.core.module import gradient_parameter_jacobian, parameter_gradient
+from tensegrity_ros.core.module.model import gradient_parameter_jacobian, parameter_gradient
 
 H = 1e-6        # finite-difference step (central differences: error ~ H^2)
 

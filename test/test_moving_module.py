@@ -8,7 +8,7 @@ import pytest
 
 from tensegrity_ros.core import (actuator_force, InvalidParameterError, ModuleParams, settle,
                                  simulate_snap)
-from tensegrity_ros.core.moving_module import MovingModule
+from tensegrity_ros.core.dynamics.moving_module import MovingModule
 
 FIG8A = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)
 LOWER = (-1.0, -1.0)
@@ -107,8 +107,8 @@ def test_a_rest_candidate_found_by_an_unstable_equilibrium_is_found_again_where_
     and the snap never reported.  Now the candidate is found again where slow rods are
     near neither it nor where it was found, and the report comes when they rest on the
     upper branch (the only stable equilibrium at 0.1: (1.47297, 1.47297))."""
-    from tensegrity_ros.core import dynamics
-    from tensegrity_ros.core.transient import Rest
+    from tensegrity_ros.core.dynamics import module_snap as dynamics
+    from tensegrity_ros.core.dynamics.transient import Rest
     real = dynamics.ModuleEquations.rest_candidate
     unstable = np.array([-1.4681677, -1.4681677])    # fig. 8a at rho = 0.1, saddle
     given = []

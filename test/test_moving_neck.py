@@ -11,14 +11,14 @@ from scipy.integrate import simpson, solve_ivp
 from scipy.linalg import eigh, null_space
 
 from tensegrity_ros.core import InvalidParameterError, ModuleParams
-from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
-from tensegrity_ros.core.events import Jump
-from tensegrity_ros.core.moving_module import MovingModule
-from tensegrity_ros.core.moving_neck import MovingNeck
-from tensegrity_ros.core.neck_dynamics import NeckEquations, simulate_neck_snap
-from tensegrity_ros.core.simulator import ModuleLimits, Simulator
-from tensegrity_ros.core.stack import settle_stack, Stack
-from tensegrity_ros.core.transient import RhoRamp
+from tensegrity_ros.core.dynamics.moving_module import MovingModule
+from tensegrity_ros.core.dynamics.moving_neck import MovingNeck
+from tensegrity_ros.core.dynamics.neck_snap import NeckEquations, simulate_neck_snap
+from tensegrity_ros.core.dynamics.transient import RhoRamp
+from tensegrity_ros.core.neck.stack import settle_stack, Stack
+from tensegrity_ros.core.simulation.dynamic_simulator import DynamicSimulator
+from tensegrity_ros.core.simulation.events import Jump
+from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
 from test_moving_module import drive
 from test_neck_dynamics import energy, FIG8A, forward, NECK
 
@@ -268,7 +268,7 @@ def test_a_neck_command_at_rest_warns_of_the_fold_ahead_before_the_rods_snap():
     mode the path is tracked ahead from the rest state in the calls' leftover time and a
     JumpAhead says where the branch ends while the actuator is still short of it and the
     rods have not snapped (it used to stay silent); the jump at rest has the same fold."""
-    from tensegrity_ros.core.events import JumpAhead
+    from tensegrity_ros.core.simulation.events import JumpAhead
     sim = _bird_simulator()
     warnings, now = list(sim.command_rho(2, 0.12, 0).of_type(JumpAhead)), 0
     while not warnings and now < 10**9:
@@ -336,7 +336,7 @@ def test_a_neck_command_given_on_the_way_to_a_fold_warns_as_the_quasi_static_mod
     0.10 (no fold), then, 0.2 s on the way, to 0.12 (the fold at 0.1127 is ~0.45 s ahead).
     The quasi-static simulator warns of the fold (JumpAhead); fails at f8d033b: the
     dynamics mode warns only of commands given at rest, and the rods snap unannounced."""
-    from tensegrity_ros.core.events import JumpAhead
+    from tensegrity_ros.core.simulation.events import JumpAhead
     found = {}
     limits = [ModuleLimits(0.05, 0.15, max_rho_rate=0.05)] * 3
     for name, sim in (('quasi-static', Simulator(BIRD.modules, UPRIGHT, limits)),

@@ -278,9 +278,9 @@ def test_qos_depths_are_the_nodes(harness):
 
 def test_the_constants_the_pages_quote():
     from tensegrity_ros import node
-    from tensegrity_ros.core import module, supported_range
-    from tensegrity_ros.core.command_coalescing import BACKLOG_BUDGET_NS
-    from tensegrity_ros.core.simulator import DEFAULT_TIME_BUDGET, DEFAULT_WORK_LIMIT
+    from tensegrity_ros.core.module import model as module, supported_range
+    from tensegrity_ros.core.simulation.command_coalescing import BACKLOG_BUDGET_NS
+    from tensegrity_ros.core.simulation.simulator import DEFAULT_TIME_BUDGET, DEFAULT_WORK_LIMIT
     text = {name: page(name) for name in ('README.md', 'diagnostics.md', 'force_a3.md',
                                           'force_a4.md', 'jumps.md', 'markers.md')}
     budget = f'{BACKLOG_BUDGET_NS // 1_000_000} ms'

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import InvalidParameterError, ModuleParams, simulate_snap
-from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
-from tensegrity_ros.core.stack import settle_stack, Stack
+from tensegrity_ros.core.dynamics.neck_snap import simulate_neck_snap
+from tensegrity_ros.core.neck.stack import settle_stack, Stack
 
 G = 9.80665
 FIG8A = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)
@@ -121,8 +121,8 @@ def test_the_overshoot_of_a_rod_swinging_through_pi_is_read_on_continuous_angles
 # the compiled evaluation (numba) and the numpy one are the same equations
 
 def _uneven_neck_equations(extend_ramp):
-    from tensegrity_ros.core.neck_dynamics import NeckEquations
-    from tensegrity_ros.core.transient import RhoRamp
+    from tensegrity_ros.core.dynamics.neck_snap import NeckEquations
+    from tensegrity_ros.core.dynamics.transient import RhoRamp
     base = {'L1': 0.12, 'L2': 0.13, 'ka': 300.0, 'kb': 310.0, 'kc': 290.0, 'm1': 0.02, 'm2': 0.025}
     mods = (ModuleParams(rho=0.09, **base), ModuleParams(rho=0.085, f3x=0.3, **base),
             ModuleParams(rho=0.08, f3y=-0.5, f4y=-0.6, **base))
@@ -135,7 +135,7 @@ def _uneven_neck_equations(extend_ramp):
 def test_the_compiled_and_the_numpy_evaluations_agree(extend_ramp):
     """Random states on and past the ramp, an uneven three-module neck: the right-hand side,
     local angles and rates, actuator forces and the batch readings agree to rounding."""
-    from tensegrity_ros.core import neck_kernel
+    from tensegrity_ros.core.dynamics import neck_kernel
     if neck_kernel.compiled() is None:
         pytest.skip('numba is not installed (or TENSEGRITY_NO_NUMBA is set)')
     system, eq = _uneven_neck_equations(extend_ramp)
@@ -160,8 +160,8 @@ import sys, rclpy
 from rclpy.parameter import Parameter
 from tensegrity_ros.node import TensegrityNode
 from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
-from tensegrity_ros.core.simulator import ModuleLimits
+from tensegrity_ros.core.simulation.dynamic_simulator import DynamicSimulator
+from tensegrity_ros.core.simulation.simulator import ModuleLimits
 rclpy.init()
 node = TensegrityNode(parameter_overrides=[Parameter('modules', value=['m0', 'm1'])])
 p = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.events import BranchEnd, Jump, JumpAhead
-from tensegrity_ros.core.simulator import ModuleLimits, Simulator
-from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, track_stack
+from tensegrity_ros.core.simulation.events import BranchEnd, Jump, JumpAhead
+from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
 
 #: Counting clocks (check points): `make test-numerics` runs it under other CPUs' arithmetic,
 #: where the work a path takes may differ.

@@ -15,8 +15,8 @@ import pytest
 from reference_paths import (angle_distance, critical_solve, flow_to_rest, ModuleSystem,
                              NeckSystem, quasi_static_path)
 from tensegrity_ros.core import ModuleParams
-from tensegrity_ros.core.simulator import Simulator
-from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, track_stack
+from tensegrity_ros.core.simulation.simulator import Simulator
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics
@@ -224,7 +224,7 @@ def test_a_jump_that_lands_past_its_event_says_where_its_landing_is_an_equilibri
     those of the neck this was found on (config/neck.yaml's modules, head pulled up 1 N,
     m1 0.0899946 -> 0.0900446 m), the jump given by hand: that one is no jump (above)."""
     from tensegrity_ros import ros_conversions
-    from tensegrity_ros.core.mechanisms import make_jump
+    from tensegrity_ros.core.simulation.mechanisms import make_jump
 
     def module(rho, load=0.0):
         return ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,
@@ -482,8 +482,8 @@ def test_a_flat_crossings_half_branches_are_the_reference_ones():
     (rho1 + rho2 = L1 + L2, as in stream 16 above), and its four half-branch states
     1e-4 rad out, are the reference's (``change_point_branches``, in the local angles
     of its own model), to 1e-9 rad."""
-    from tensegrity_ros.core import flat_crossing
-    from tensegrity_ros.core.stack import StackPath
+    from tensegrity_ros.core.neck import flat_crossing
+    from tensegrity_ros.core.neck.stack import StackPath
     stack = neck_yaml((0.11, 0.09, 0.15), -2.0)
     path = StackPath(stack, stack)
     y = path.state_from_angles([[-0.578, -0.593], [6e-4, -8e-5], [-0.007, -0.0097]], 0.0)
@@ -507,7 +507,7 @@ def test_a_tracker_that_stops_at_events_lands_without_rigid_flows():
     rigid restart of their landing flows the command took over 20 s.  They land as before
     (elastic-chord flows only), and the command ends ok on a stable equilibrium."""
     from tensegrity_ros.core import continuation
-    from tensegrity_ros.core.stack import StackPath
+    from tensegrity_ros.core.neck.stack import StackPath
     counted = [0]
 
     class Counted(StackPath):

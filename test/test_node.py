@@ -507,7 +507,7 @@ def test_bad_forces_are_dropped_and_counted(harness):
 
 def test_unexpected_exception_in_a_callback_is_counted_not_raised(harness, monkeypatch):
     # the tracker is injected where the node's simulator calls it
-    import tensegrity_ros.core.mechanisms as node_module
+    import tensegrity_ros.core.simulation.mechanisms as node_module
     h = harness().ready()
 
     def broken(*args, **kwargs):
@@ -530,7 +530,7 @@ def test_tracking_failure_keeps_the_last_verified_state(harness, monkeypatch):
     import dataclasses
 
     # the tracker is injected where the node's simulator calls it
-    import tensegrity_ros.core.mechanisms as node_module
+    import tensegrity_ros.core.simulation.mechanisms as node_module
     real = node_module.track_module
 
     def stops_halfway(start, end, theta, **options):

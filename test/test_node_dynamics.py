@@ -122,7 +122,7 @@ def test_a_neck_snaps_through_a_fold_and_reports_the_figures_at_rest(harness):
     offline transient of the same profile, every module's on the way."""
     from std_msgs.msg import Float64
 
-    from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
+    from tensegrity_ros.core.dynamics.neck_snap import simulate_neck_snap
     from test_moving_neck import ACROSS_THE_FOLD, BIRD, UPRIGHT
     from test_node_neck import MODULES, Neck
 
@@ -158,7 +158,7 @@ def test_a_neck_snaps_through_a_fold_and_reports_the_figures_at_rest(harness):
     positions, efforts = neck.joints()
     assert positions['m2_rho'] == ACROSS_THE_FOLD[2]
     # at rest the efforts are the verified state's static actuator forces
-    from tensegrity_ros.core.stack import settle_stack, Stack
+    from tensegrity_ros.core.neck.stack import settle_stack, Stack
     rest = settle_stack(Stack(tuple(p.with_(rho=r) for p, r in zip(BIRD.modules,
                                                                    ACROSS_THE_FOLD))),
                         ref['final']['theta'])
@@ -237,7 +237,7 @@ def test_a_neck_snap_keeps_every_tick_short_and_joint_states_sample_it(harness):
     |theta'| peaks within 10 % of the jump's peak_speed."""
     from std_msgs.msg import Float64
 
-    from tensegrity_ros.core.neck_dynamics import simulate_neck_snap
+    from tensegrity_ros.core.dynamics.neck_snap import simulate_neck_snap
     from test_moving_neck import ACROSS_THE_FOLD, BIRD, UPRIGHT
     from test_node import PUB_QOS
     from test_node_neck import MODULES, NECK_CONFIG

@@ -15,7 +15,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from tensegrity_ros.core import TrackingError
-from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, track_stack
 from test_node import values
 from test_node_neck import MODULES
 
@@ -247,7 +247,7 @@ def test_tracker_error_in_a_stack_keeps_the_state_unchanged(neck, monkeypatch, f
     """The node's explicit paths for a tracker that raises or hands back a non-minimum
     (injected: the real tracker reaches neither from a verified state)."""
     # the tracker is injected where the node's simulator calls it
-    import tensegrity_ros.core.mechanisms as node_module
+    import tensegrity_ros.core.simulation.mechanisms as node_module
     n = neck()
     h = n.h
     real = node_module.track_stack

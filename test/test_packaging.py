@@ -54,7 +54,7 @@ def test_exec_depends_are_what_the_node_and_launch_files_import():
         'node.py', 'node_parameters.py', 'parameter_handling.py', 'node_process.py',
         'ros_conversions.py', 'joint_state_names.py',
         'params_file.py', 'module_parameters.py', 'log_text.py')]
-    files += sorted((ROOT / 'tensegrity_ros' / 'core').glob('*.py'))
+    files += sorted((ROOT / 'tensegrity_ros' / 'core').rglob('*.py'))
     files += sorted((ROOT / 'launch').glob('*.launch.py'))
     imported = set().union(*(top_level_imports(f) for f in files))
     assert imported <= ROS_PACKAGES.keys(), imported - ROS_PACKAGES.keys()

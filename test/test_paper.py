@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import equilibria, equilibria_batch, hessian, ModuleParams, node_positions
-from tensegrity_ros.core.equilibria import DEGENERACY_TOL
+from tensegrity_ros.core.module.equilibria import DEGENERACY_TOL
 
 TWO_PI = 2 * math.pi
 FLATS = [(0.0, 0.0), (0.0, math.pi), (math.pi, 0.0), (math.pi, math.pi)]

@@ -45,7 +45,7 @@ from scipy.optimize import brentq
 
 from node_spring_flow import NodeSpringNeck, released_past_a_branch_point, rest_point
 from tensegrity_ros.core import equilibria, ModuleParams
-from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, track_stack
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics

@@ -104,8 +104,8 @@ from reference_paths import (angle_distance, critical_solve, FIELDS, flow_to_res
                              values_of)
 from tensegrity_ros.core import ModuleParams, settle, track_module
 from tensegrity_ros.core.continuation import TrackingError
-from tensegrity_ros.core.stack import settle_stack, Stack, stack_equilibrium_at, track_stack
-from tensegrity_ros.core.supported_range import LOAD_RATIO
+from tensegrity_ros.core.module.supported_range import LOAD_RATIO
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, stack_equilibrium_at, track_stack
 
 #: A reported jump and the reference's must be this close in s.
 LOCATION_TOL = 1e-7

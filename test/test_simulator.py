@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import equilibria, ModuleParams, settle, track_module, TrackingError
-from tensegrity_ros.core.events import (combined, Jump, JumpAhead, Passage, TrackingFailure,
-                                        Undecided)
-import tensegrity_ros.core.mechanisms as mechanisms
-from tensegrity_ros.core.simulator import ModuleLimits, Simulator
-from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
-from tensegrity_ros.core.start_state import upright_guess
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, track_stack
+from tensegrity_ros.core.simulation.events import (combined, Jump, JumpAhead, Passage,
+                                                   TrackingFailure, Undecided)
+import tensegrity_ros.core.simulation.mechanisms as mechanisms
+from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
+from tensegrity_ros.core.simulation.start_state import upright_guess
 
 
 def wrapped(a, b):

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import ModuleParams, simulate_snap
-from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
-from tensegrity_ros.core.events import Jump, JumpAhead, REFUSED
-from tensegrity_ros.core.simulator import ModuleLimits, Simulator
+from tensegrity_ros.core.simulation.dynamic_simulator import DynamicSimulator
+from tensegrity_ros.core.simulation.events import Jump, JumpAhead, REFUSED
+from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
 
 FIG8A = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)
 LOWER = (-1.0, -1.0)

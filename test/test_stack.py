@@ -8,8 +8,9 @@ from scipy.optimize import minimize
 
 from tensegrity_ros.core import (BRANCH_POINT, equilibria, FOLD, ModuleParams, ModulePath, settle,
                                  track_module)
-from tensegrity_ros.core.stack import (settle_stack, Stack, stack_equilibria, stack_equilibrium_at,
-                                       StackJump, StackPassage, StackPath, track_stack)
+from tensegrity_ros.core.neck.stack import (settle_stack, Stack, stack_equilibria,
+                                            stack_equilibrium_at, StackJump, StackPassage,
+                                            StackPath, track_stack)
 
 G = 9.80665
 
@@ -428,6 +429,7 @@ def test_a_flow_stops_at_the_step_its_velocity_says_it_rests(n, rtol):
     tolerance: at every step whose velocity is within 10 tolerances the estimate is
     ten times inside that margin, so no rest is passed by."""
     from types import SimpleNamespace
+
     from tensegrity_ros.core.continuation.flows import flow_to_rest, speed_estimate
     from tensegrity_ros.core.continuation.settings import REST_CHECK_MARGIN
     rng = np.random.default_rng(n)

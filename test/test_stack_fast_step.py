@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import continuation
-from tensegrity_ros.core.module import ModuleParams
-from tensegrity_ros.core.stack import settle_stack, Stack, StackPath, track_stack
-from tensegrity_ros.core.stack_fast_step import _KEPT, whole_command_step
+from tensegrity_ros.core.module.model import ModuleParams
+from tensegrity_ros.core.neck.fast_step import _KEPT, whole_command_step
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, StackPath, track_stack
 from test_stack_formulations import random_stack, wrapped
 
 
@@ -134,7 +134,7 @@ def test_the_kept_evaluation_is_the_fresh_one_at_the_next_start(n):
     same parameters and scales, and every quantity the step reads from it (residual,
     Jacobian, eigenvalues, and dF/ds, dE/ds of the *new* path) is the fresh one; after a
     command that changed the rod lengths (new scales) the next one evaluates afresh."""
-    from tensegrity_ros.core.stack_fast_step import _start_point
+    from tensegrity_ros.core.neck.fast_step import _start_point
     rng = np.random.default_rng(400 + n)
     stack = random_stack(rng, n)
     state = settle_stack(stack, np.full((n, 2), 0.75))

@@ -1,4 +1,4 @@
-"""The compiled neck flows (numba, :mod:`tensegrity_ros.core.stack_flow_kernel`) and the
+"""The compiled neck flows (numba, :mod:`tensegrity_ros.core.neck.flow_kernel`) and the
 numpy ones are the same equations: on the states real flows visit (landings, releases,
 start settles of necks of 2..10 modules, damped ones next to flat modules among them),
 the velocity agrees to rounding and the damping decision exactly; a tracker run with
@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 
 from neck_path_families import paths
-from tensegrity_ros.core import numba_kernels, stack_flow_kernel
 from tensegrity_ros.core.continuation import TrackerSettings
-from tensegrity_ros.core.stack import settle_stack, track_stack
-from tensegrity_ros.core.stack_flows import StackFlows
-from tensegrity_ros.core.stack_path import StackPath
+from tensegrity_ros.core.neck import flow_kernel as stack_flow_kernel
+from tensegrity_ros.core.neck.flows import StackFlows
+from tensegrity_ros.core.neck.path import StackPath
+from tensegrity_ros.core.neck.stack import settle_stack, track_stack
+from tensegrity_ros.core.numerics import numba_kernels
 
 #: (the numpy side is the BLAS kernel's: run under every kernel of make test-numerics)
 pytestmark = pytest.mark.numerics
@@ -89,7 +90,7 @@ def test_without_numba_the_numpy_flows_run(monkeypatch):
     """TENSEGRITY_NO_NUMBA: nothing compiles, compile_flows leaves the numpy flows, and a
     tolerance study's code fingerprint says so (a cluster's workers must agree on it: the
     two round differently)."""
-    from tensegrity_ros.core.tolerance_questions import code_fingerprint
+    from tensegrity_ros.core.tolerance.questions import code_fingerprint
     code_fingerprint.cache_clear()
     with_numba, available = code_fingerprint(), numba_kernels.engine() != 'numpy'
     monkeypatch.setenv('TENSEGRITY_NO_NUMBA', '1')

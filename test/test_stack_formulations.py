@@ -8,7 +8,7 @@ import pytest
 
 from stack_cartesian_reference import CartesianStackPath
 from tensegrity_ros.core import continuation, ModuleParams
-from tensegrity_ros.core.stack import settle_stack, Stack, StackPath, track_stack
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, StackPath, track_stack
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics
@@ -168,7 +168,7 @@ def test_stability_is_the_same_in_either_coordinates(seed, n):
 def test_the_fast_path_takes_a_command_exactly_when_the_tracker_takes_it_in_one_step(n):
     """The one-step fast path applies the tracker's acceptance rules: it answers exactly
     the commands the generic tracker covers in one step, with the tracker's state."""
-    from tensegrity_ros.core.stack_fast_step import whole_command_step
+    from tensegrity_ros.core.neck.fast_step import whole_command_step
     rng = np.random.default_rng(200 + n)
     taken = declined = 0
     for size in (1e-4, 1e-3, 1e-2, 3e-2, 1e-1, 0.2):

@@ -10,7 +10,7 @@ import pytest
 
 from stack_cartesian_reference import CartesianStackPath
 from tensegrity_ros.core import BRANCH_POINT, equilibria, FOLD, ModuleParams
-from tensegrity_ros.core.stack import settle_stack, Stack, track_stack
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, track_stack
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics

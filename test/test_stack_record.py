@@ -6,8 +6,8 @@ import math
 from hypothesis import given, settings, strategies as st
 import numpy as np
 
-from tensegrity_ros.core.module import ModuleParams
-from tensegrity_ros.core.simulator import Simulator
+from tensegrity_ros.core.module.model import ModuleParams
+from tensegrity_ros.core.simulation.simulator import Simulator
 
 NECK = [ModuleParams(rho=r, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02,
                      m2=0.02) for r in (0.09, 0.085, 0.08)]
@@ -50,7 +50,7 @@ def test_nodes_and_head_are_those_of_the_angles(moves):
 def test_scales_carried_along_actuator_commands_equal_fresh_ones():
     """A path whose rods and springs stay still hands its scales on to its end (the next
     command's start): they are the ones computed afresh, and a design change computes new."""
-    from tensegrity_ros.core.stack import Stack, StackPath
+    from tensegrity_ros.core.neck.stack import Stack, StackPath
     start = Stack(tuple(NECK))
     ends = [Stack(tuple(m.with_rho(m.rho + 1e-4 * k) for m in NECK)) for k in (1, 2, 3)]
     ends.append(Stack(tuple(m.with_(L1=0.13) for m in ends[-1].modules)))
@@ -69,7 +69,7 @@ def test_lazy_angles_and_forces_are_those_of_a_fresh_evaluation():
     """A record's angles, actuator forces and nodes, made on first read from the tracker's
     kept evaluation, are those of a fresh path evaluated at the record's own state and
     parameters (read after later commands, so a reused evaluation would show)."""
-    from tensegrity_ros.core.stack import settle_stack, Stack, StackPath, track_stack
+    from tensegrity_ros.core.neck.stack import settle_stack, Stack, StackPath, track_stack
     stack = Stack(tuple(NECK))
     state = settle_stack(stack, NECK_THETA)
     records = []
@@ -95,7 +95,8 @@ def test_a_record_keeps_rod_angles_within_a_turn_whatever_state_it_is_made_from(
     loosens every later Newton stop (relative to 1 + |y|).  A record made from such a
     state, or tracked from it, holds the same rods with angles within [-pi, pi], and
     angles within 3 pi are kept bit for bit."""
-    from tensegrity_ros.core.stack import settle_stack, Stack, stack_equilibrium_at, track_stack
+    from tensegrity_ros.core.neck.stack import (settle_stack, Stack, stack_equilibrium_at,
+                                                track_stack)
     stack = Stack(tuple(NECK))
     settled = settle_stack(stack, NECK_THETA)
     y = settled.state
@@ -124,7 +125,7 @@ def test_a_one_step_track_is_the_dataclass_one():
     """The small command's result is made by filling the instance dict (issue 14): it must
     equal the frozen dataclass made through its own __init__, field for field, so that a
     field added to StackTrack cannot be left out of it silently."""
-    from tensegrity_ros.core.stack import _one_step_track, Stack, StackTrack, track_stack
+    from tensegrity_ros.core.neck.stack import _one_step_track, Stack, StackTrack, track_stack
     start = Stack(tuple(NECK))
     end = start.with_module(1, rho=0.086)
     track = track_stack(start, end, np.array(NECK_THETA))

@@ -11,9 +11,9 @@ import pytest
 
 from tensegrity_ros.core import (equilibria, InvalidParameterError, ModuleParams, settle,
                                  track_module)
-from tensegrity_ros.core.supported_range import (check_supported, LENGTH_RATIO, LOAD_RATIO,
-                                                 out_of_range_reason, OutOfRangeError,
-                                                 STIFFNESS_RATIO)
+from tensegrity_ros.core.module.supported_range import (check_supported, LENGTH_RATIO, LOAD_RATIO,
+                                                        out_of_range_reason, OutOfRangeError,
+                                                        STIFFNESS_RATIO)
 
 
 def scaled(p, length, stiffness):

@@ -9,7 +9,7 @@ from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 
-from tensegrity_ros.core.tolerance_sampling import sample_waypoints, unit_samples
+from tensegrity_ros.core.tolerance.sampling import sample_waypoints, unit_samples
 from tensegrity_ros.tolerance import module_design, parse_tolerances, question_for
 
 RANGE_CASES = [

@@ -8,10 +8,10 @@ from test_import_layers import GRAPH
 
 TOLERANCE = {'tensegrity_ros.tolerance', 'tensegrity_ros.tolerance_engine',
              'tensegrity_ros.tolerance_replay', 'tensegrity_ros.tolerance_report',
-             'tensegrity_ros.tolerance_command', 'tensegrity_ros.core.tolerance_sampling',
-             'tensegrity_ros.core.tolerance_questions',
-             'tensegrity_ros.core.tolerance_statistics', 'tensegrity_ros.core.branch_batch',
-             'tensegrity_ros.core.tolerance_batch'}
+             'tensegrity_ros.tolerance_command', 'tensegrity_ros.core.tolerance.sampling',
+             'tensegrity_ros.core.tolerance.questions',
+             'tensegrity_ros.core.tolerance.sample_statistics',
+             'tensegrity_ros.core.tolerance.branch_batch', 'tensegrity_ros.core.tolerance.batch'}
 
 
 def closure(name):

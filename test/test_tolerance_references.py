@@ -20,7 +20,7 @@ import pytest
 from scipy import stats
 
 from tensegrity_ros import cli
-from tensegrity_ros.core.tolerance_statistics import proportion_interval
+from tensegrity_ros.core.tolerance.sample_statistics import proportion_interval
 from tensegrity_ros.tolerance import module_design, neck_design, tolerance_study
 
 Q = (0.01, 0.05, 0.5, 0.95, 0.99)
@@ -63,7 +63,7 @@ def test_the_unloaded_branch_ends_where_it_merges_not_at_rho_0():
     this branch (7 of the 512 samples above): it merges at (L2 - L1) / 2."""
     from tensegrity_ros.core import ModuleParams
     from tensegrity_ros.core.analysis import operation_range
-    from tensegrity_ros.core.start_state import upper_equilibrium
+    from tensegrity_ros.core.simulation.start_state import upper_equilibrium
     p = ModuleParams.paper(0.5, L2=1.2539027522962565)
     result = operation_range(p, upper_equilibrium(p).theta)
     assert result.rho_min == pytest.approx((p.L2 - 1.0) / 2, abs=1e-12)
@@ -127,7 +127,7 @@ def test_head_load_stopped_at_the_first_event_is_the_full_tracks(which, monkeypa
     """The head-load question tracks each sample only to its first jump
     (TrackerSettings.stop_at_first_event); the full track of the same samples, past the
     jump to the end load, reports the same critical load, bit for bit (seeded samples)."""
-    from tensegrity_ros.core import tolerance_questions
+    from tensegrity_ros.core.tolerance import questions as tolerance_questions
     if which == 'neck':
         design = neck_design('config/neck.yaml', legs=[{'F': -9.0}])
         tols, n, exact = ['k=3%', 'L1=0.0005', 'L2=0.0005'], 6, False

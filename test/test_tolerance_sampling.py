@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from tensegrity_ros.core.tolerance_sampling import (parse_spread, sample_waypoints, Tolerance,
+from tensegrity_ros.core.tolerance.sample_statistics import (noise_level, proportion_interval,
+                                                             quantiles, rank_correlations)
+from tensegrity_ros.core.tolerance.sampling import (parse_spread, sample_waypoints, Tolerance,
                                                     unit_samples)
-from tensegrity_ros.core.tolerance_statistics import (noise_level, proportion_interval, quantiles,
-                                                      rank_correlations)
 
 
 @pytest.mark.parametrize('text, expected', [

@@ -19,11 +19,11 @@ points is bounded too, by GRANULARITY (see there).
 import numpy as np
 import pytest
 
-from tensegrity_ros.core import (bounded_work, continuation, equilibria, ModuleParams, settle,
-                                 TrackerSettings)
-from tensegrity_ros.core.stack import settle_stack, Stack, StackPath, track_stack
-from tensegrity_ros.core.start_state import upright_guess
-from tensegrity_ros.core.tracking import ModulePath
+from tensegrity_ros.core import continuation, equilibria, ModuleParams, settle, TrackerSettings
+from tensegrity_ros.core.module.tracking import ModulePath
+from tensegrity_ros.core.neck.stack import settle_stack, Stack, StackPath, track_stack
+from tensegrity_ros.core.numerics import bounded_work
+from tensegrity_ros.core.simulation.start_state import upright_guess
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics

@@ -9,7 +9,7 @@ from scipy.optimize import brentq, fsolve
 from tensegrity_ros.core import (BRANCH_POINT, equilibria, FOLD, ModuleParams, settle, track,
                                  track_module, TrackingError)
 from tensegrity_ros.core.continuation import positive_definite, TrackerSettings
-from tensegrity_ros.core.stack import StackEquilibrium
+from tensegrity_ros.core.neck.stack import StackEquilibrium
 
 #: Numerically sensitive throughout: `make test-numerics` runs it under other CPUs' arithmetic.
 pytestmark = pytest.mark.numerics

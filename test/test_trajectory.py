@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 
 from tensegrity_ros.core import ModuleParams, settle, track_module
-from tensegrity_ros.core.events import Jump, Outcome, refused
-from tensegrity_ros.core.simulator import ModuleLimits, Simulator
-from tensegrity_ros.core.trajectory import (ABORTED, CANCELED, EXECUTING, IDLE, MotionEnded,
-                                            SUCCEEDED, Trajectory, TrajectoryPlayer)
+from tensegrity_ros.core.simulation.events import Jump, Outcome, refused
+from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
+from tensegrity_ros.core.simulation.trajectory import (ABORTED, CANCELED, EXECUTING, IDLE,
+                                                       MotionEnded, SUCCEEDED, Trajectory,
+                                                       TrajectoryPlayer)
 
 S = 1_000_000_000
 LOWER = [-1.0, -1.0]
@@ -226,7 +227,7 @@ def test_a_jump_on_the_way_is_reported_and_lands_where_the_tracker_lands(rate):
 def test_in_the_dynamics_mode_it_succeeds_once_the_rods_rest_at_the_goal():
     """The rods move with their inertia: the trajectory's end time passes while they still
     swing; it has succeeded only when they rest at its last point."""
-    from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
+    from tensegrity_ros.core.simulation.dynamic_simulator import DynamicSimulator
     params = ModuleParams.paper(0.5, F3=5.0, F4=5.0).with_(m1=0.05, m2=0.05)
     sim = DynamicSimulator([params], [LOWER], [ModuleLimits(0.05, 1.95, max_rho_rate=1.0)],
                            damping=[0.5])

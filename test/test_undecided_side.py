@@ -21,7 +21,7 @@ import pytest
 from neck_path_families import paper_neck, upright
 from reference_paths import angle_distance, flow_to_rest, NeckSystem
 from tensegrity_ros.core import equilibria, ModuleParams, track, track_module
-from tensegrity_ros.core.stack import track_stack
+from tensegrity_ros.core.neck.stack import track_stack
 
 pytestmark = pytest.mark.numerics
 

@@ -1,13 +1,13 @@
 """ROS-free core: the model, the exact solver, stability and the tracker (numpy/scipy only)."""
 from .continuation import (BRANCH_POINT, Event, FOLD, PathProblem, Track, track, TrackerSettings,
                            TrackingError, Undecided)
-from .dynamics import RhoRamp, simulate_snap, Snap, SnapHistory
-from .equilibria import (classify, equilibria, equilibria_batch, Equilibrium, EquilibriumBatch,
-                         EquilibriumSet)
-from .module import (actuator_force, energy, gradient, hessian, InvalidParameterError,
-                     ModuleParams, node_positions, PARAMETER_NAMES, STANDARD_GRAVITY)
-from .tracking import (equilibrium_at, ModuleJump, ModulePath, ModuleTrack, ModuleUndecided,
-                       settle, track_module)
+from .dynamics.module_snap import RhoRamp, simulate_snap, Snap, SnapHistory
+from .module.equilibria import (classify, equilibria, equilibria_batch, Equilibrium,
+                                EquilibriumBatch, EquilibriumSet)
+from .module.model import (actuator_force, energy, gradient, hessian, InvalidParameterError,
+                           ModuleParams, node_positions, PARAMETER_NAMES, STANDARD_GRAVITY)
+from .module.tracking import (equilibrium_at, ModuleJump, ModulePath, ModuleTrack, ModuleUndecided,
+                              settle, track_module)
 
 __all__ = [
     'ModuleParams', 'InvalidParameterError', 'PARAMETER_NAMES', 'STANDARD_GRAVITY',

@@ -23,7 +23,7 @@ from .correctors import arc_point, solve_branch_point
 from .problem import admissible
 from .results import PITCHFORK_CERTIFIED, TrackingError
 from .settings import LOCATION_TOL, PITCHFORK_CONTRACTION, UNRESOLVED
-from ..tolerances import BRANCH_POINT_CERTIFIED
+from ..numerics.tolerances import BRANCH_POINT_CERTIFIED
 
 
 def at_the_critical_point(s_star, s_end):

@@ -8,7 +8,7 @@ margin test (one soft mode).  See :mod:`..tolerances` for the certificates' name
 """
 from __future__ import annotations
 
-from ..tolerances import BRANCH_POINT_CERTIFIED, verified_minimum
+from ..numerics.tolerances import BRANCH_POINT_CERTIFIED, verified_minimum
 
 
 def soft_minimum(run, eigenvalues):

@@ -11,7 +11,7 @@ import numpy as np
 
 from .run_state import inf_norm
 from .settings import ARC_RESOLUTION
-from .. import bounded_work
+from ..numerics import bounded_work
 
 
 def curve_tangent(run, y, s, reference=None):

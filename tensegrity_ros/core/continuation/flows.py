@@ -15,10 +15,9 @@ from scipy.integrate import LSODA
 from scipy.optimize import minimize_scalar
 
 from .run_state import inf_norm
-from .settings import (CROSSING_APPROACH, ELASTIC_FLOW_RTOL, FAR_FROM_FLAT,
-                       JACOBIAN_EVALUATIONS, MAX_CROSSING_LEGS, REST_CHECK_MARGIN,
-                       RIGID_FLOW_RTOL)
-from .. import bounded_work
+from .settings import (CROSSING_APPROACH, ELASTIC_FLOW_RTOL, FAR_FROM_FLAT, JACOBIAN_EVALUATIONS,
+                       MAX_CROSSING_LEGS, REST_CHECK_MARGIN, RIGID_FLOW_RTOL)
+from ..numerics import bounded_work
 
 
 class FlowBudgetExceeded(Exception):

@@ -21,7 +21,7 @@ from . import certificates
 from .correctors import arc_point, curve_tangent
 from .results import PITCHFORK_CERTIFIED, Track, TrackingError
 from .step_rules import near_prediction, on_one_branch, step_bound
-from .. import bounded_work
+from ..numerics import bounded_work
 
 
 @dataclass

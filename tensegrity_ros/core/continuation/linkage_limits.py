@@ -24,7 +24,7 @@ from .lander import landing_at_event
 from .results import BRANCH_POINT, Event, FOLD
 from .run_state import inf_norm, solve
 from .settings import EXACT_CROSSING_STALL, SNAP_DISTANCE
-from .. import bounded_work
+from ..numerics import bounded_work
 
 
 def through_linkage_limit(run, y, s, s_end):

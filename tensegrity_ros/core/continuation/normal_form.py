@@ -38,7 +38,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .correctors import arc_point, bordered_newton, null_vectors
-from .. import bounded_work
+from ..numerics import bounded_work
 
 TURNS_BACK = 'turns_back'
 AHEAD = 'ahead'

@@ -17,7 +17,7 @@ import numpy as np
 from .problem import SubPath
 from .settings import UNRESOLVED_UPDATE
 from .step_rules import energy_consistent, forward_rate, positive_definite
-from .. import bounded_work
+from ..numerics import bounded_work
 
 
 def solve(matrix, rhs):

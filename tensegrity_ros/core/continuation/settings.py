@@ -5,7 +5,7 @@ from dataclasses import dataclass
 import time
 from typing import Callable
 
-from ..tolerances import DEFINITENESS_TOL
+from ..numerics.tolerances import DEFINITENESS_TOL
 
 #: Newton's contraction test on a buckled branch followed away from its branch point
 #: (:func:`.branch_switching.away_from_branch_point`): in that nearly cubic valley Newton

@@ -20,8 +20,8 @@ from .problem import PathProblem
 from .results import Track, TrackingError
 from .run_state import RunState
 from .settings import LOCATION_TOL, TrackerSettings
-from ..bounded_work import Budget
-from ..tolerances import BRANCH_POINT_CERTIFIED
+from ..numerics.bounded_work import Budget
+from ..numerics.tolerances import BRANCH_POINT_CERTIFIED
 
 
 class Events:

@@ -1,0 +1,16 @@
+"""Every equilibrium of one module, exactly (docs/model.md section 3): the entry points.
+
+The work is split by concept: :mod:`.module.polynomial_solver` (elimination to a degree-6
+polynomial, polishing, degenerate cases), :mod:`.module.batch_solver` (the vectorised form
+for maps) and :mod:`.module.classification` (Morse type, the records).  This module gathers
+their public names under the path tools and tests have always imported.
+"""
+from .batch_solver import BATCH_BLOCK, equilibria_batch, EquilibriumBatch
+from .classification import (classify, DEGENERACY_TOL, Equilibrium, EquilibriumSet,
+                             hessian_eigenvalues, KIND_DEGENERATE, KIND_MAXIMUM, KIND_MINIMUM,
+                             KIND_SADDLE)
+from .polynomial_solver import equilibria
+
+__all__ = ['BATCH_BLOCK', 'EquilibriumBatch', 'equilibria_batch', 'DEGENERACY_TOL',
+           'KIND_DEGENERATE', 'KIND_MAXIMUM', 'KIND_MINIMUM', 'KIND_SADDLE', 'Equilibrium',
+           'EquilibriumSet', 'classify', 'hessian_eigenvalues', 'equilibria']

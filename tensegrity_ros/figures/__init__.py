@@ -26,9 +26,9 @@ import time
 
 import numpy as np
 
-from .core import equilibria, equilibria_batch, ModuleParams, track_module
-from .core.start_state import start_state
-from .problem import describe, resolve_fields
+from ..core import equilibria, equilibria_batch, ModuleParams, track_module
+from ..core.start_state import start_state
+from ..problem import describe, resolve_fields
 
 #: Points per chunk of a map (measured: ~20k points minimise the cost per point).
 MAP_CHUNK = 20000
@@ -219,7 +219,7 @@ def compute_boundaries(fixed, xaxis, yaxis):
     ``fixed`` and the axes as for :func:`compute_map` (only the names and ranges of
     the axes are used: the curves are traced by continuation, not sampled).
     """
-    from .core.analysis import degenerate_curves
+    from ..core.analysis import degenerate_curves
     xname, xlo, xhi, _ = xaxis
     yname, ylo, yhi, _ = yaxis
     for name in (xname, yname):

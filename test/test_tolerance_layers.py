@@ -10,7 +10,7 @@ TOLERANCE = {'tensegrity_ros.tolerance', 'tensegrity_ros.tolerance.design',
              'tensegrity_ros.tolerance.study', 'tensegrity_ros.tolerance.result',
              'tensegrity_ros.tolerance.engine', 'tensegrity_ros.tolerance.replay',
              'tensegrity_ros.tolerance.report',
-             'tensegrity_ros.tolerance_command', 'tensegrity_ros.core.tolerance_sampling',
+             'tensegrity_ros.cli.tolerance', 'tensegrity_ros.core.tolerance_sampling',
              'tensegrity_ros.core.tolerance_questions',
              'tensegrity_ros.core.tolerance_statistics', 'tensegrity_ros.core.branch_batch',
              'tensegrity_ros.core.tolerance_batch'}

@@ -15,9 +15,9 @@ import argparse
 import os
 import sys
 
-from .core.tolerance_sampling import SAMPLERS
-from .core.tolerance_statistics import INTERVALS
-from .tolerance import (module_design, neck_design, QUESTIONS, tolerance_study, ToleranceError,
+from ..core.tolerance_sampling import SAMPLERS
+from ..core.tolerance_statistics import INTERVALS
+from ..tolerance import (module_design, neck_design, QUESTIONS, tolerance_study, ToleranceError,
                         write_text_file)
 
 _HELP = {

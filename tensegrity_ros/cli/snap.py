@@ -15,7 +15,7 @@ import csv
 import json
 import math
 
-from .core.dynamics import MAX_HOLD, simulate_snap
+from ..core.dynamics import MAX_HOLD, simulate_snap
 
 HELP = 'simulate the motion of a snap-through (rods with mass, pivot damping)'
 DESCRIPTION = (

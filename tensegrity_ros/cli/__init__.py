@@ -38,12 +38,12 @@ import sys
 
 import numpy as np
 
-from . import snap_command, tolerance_command
-from .core import equilibria, InvalidParameterError, ModuleParams, track_module
-from .core.start_state import start_state, upright_guess
+from . import snap as snap_command, tolerance as tolerance_command
+from ..core import equilibria, InvalidParameterError, ModuleParams, track_module
+from ..core.start_state import start_state, upright_guess
 from .passage_records import (stack_passage_line, stack_passage_record, theta_text,
                               undecided_line, undecided_record)
-from .problem import (APPLY_ORDER, DEFAULT_FIELDS, describe, describe_modules, PARAMETERS,
+from ..problem import (APPLY_ORDER, DEFAULT_FIELDS, describe, describe_modules, PARAMETERS,
                       resolve_fields)
 
 #: Names whose value must be > 0, resp. >= 0.
@@ -309,7 +309,7 @@ def _add_stack_options(parser, track=False):
 
 def equilibrium_record(p, e):
     """JSON-ready dict of one equilibrium (radians, SI)."""
-    from .core import node_positions
+    from ..core import node_positions
     nodes = node_positions(p, (e.theta1, e.theta2))
     return {
         'theta1': e.theta1, 'theta2': e.theta2, 'stable': bool(e.stable),
@@ -490,7 +490,7 @@ def _stack_spec(args):
     n = args.modules
     config = None
     if args.config is not None:
-        from .params_file import ConfigError, load_stack_config
+        from ..params_file import ConfigError, load_stack_config
         _check_input(args.config, '--config')
         try:
             config = load_stack_config(args.config, args.node)
@@ -557,7 +557,7 @@ def _override(fields_list, values, rhos):
 
 
 def _make_stack(fields_list, names):
-    from .core.stack import Stack
+    from ..core.stack import Stack
     modules = []
     for name, fields in zip(names, fields_list):
         if fields.get('rho') is None:
@@ -599,7 +599,7 @@ def _head_text(e):
 
 def exact_stack_equilibria(stack):
     """(records sorted by energy, status) of a one-module stack from the exact solver."""
-    from .core.stack import stack_equilibrium_at, StackPath
+    from ..core.stack import stack_equilibrium_at, StackPath
     result = equilibria(stack.modules[0])
     path = StackPath(stack, stack)
     records = [stack_equilibrium_at(stack, path.state_from_angles([[e.theta1, e.theta2]], 0.0))
@@ -610,7 +610,7 @@ def exact_stack_equilibria(stack):
 def cmd_stack_solve(args, out):
     import time
 
-    from .core.stack import stack_equilibria
+    from ..core.stack import stack_equilibria
     spec = _stack_spec(args)
     if args.rho is not None and args.rhos is not None:
         raise UsageError('give --rho (every module) or --rhos (one per module), not both')
@@ -705,7 +705,7 @@ def stack_jump_record(jump):
 
 
 def cmd_stack_track(args, out):
-    from .core.stack import settle_stack, track_stack
+    from ..core.stack import settle_stack, track_stack
     spec = _stack_spec(args)
     if args.rho is not None and args.rhos is not None:
         raise UsageError('give --rho (every module) or --rhos (one per module), not both')
@@ -802,7 +802,7 @@ def _check_output(path, option):
 
 
 def cmd_map(args, out):
-    from . import figures
+    from .. import figures
     if args.jobs < 0:
         raise UsageError(f'--jobs must be >= 0 (0 = automatic), got {args.jobs}')
     xname, xlo, xhi, nx = parse_axis(args.x, '--x')
@@ -874,7 +874,7 @@ def cmd_map(args, out):
 # diagram
 
 def cmd_diagram(args, out):
-    from . import figures
+    from .. import figures
     lo, hi = args.from_rho, args.to_rho
     for option, v in (('--from-rho', lo), ('--to-rho', hi)):
         if not v > 0.0:
@@ -945,7 +945,7 @@ def _end_text(end):
 
 
 def cmd_range(args, out):
-    from .core.analysis import operation_range
+    from ..core.analysis import operation_range
     values = _values(args)
     p = make_params(values)
     bounds = None
@@ -980,7 +980,7 @@ def cmd_range(args, out):
 
 
 def cmd_limit(args, out):
-    from .core.analysis import two_stable_limit
+    from ..core.analysis import two_stable_limit
     values = {}
     for name in ('L1', 'L2', 'k', 'ka', 'kb', 'kc', 'F3x', 'F4x'):
         v = getattr(args, name)

@@ -118,8 +118,8 @@ def test_bad_command_lines_are_refused_in_one_line(argv, message):
 
 
 def test_an_unreachable_scheduler_is_an_error_not_a_hang(monkeypatch):
-    from tensegrity_ros import tolerance_engine
-    monkeypatch.setattr(tolerance_engine, 'CONNECT_TIMEOUT', 2.0)     # 30 s by default
+    from tensegrity_ros.tolerance import engine
+    monkeypatch.setattr(engine, 'CONNECT_TIMEOUT', 2.0)     # 30 s by default
     code, _, err = run(['tolerance', 'range', '--rho', '0.5', '--tol', 'k=5%', '--samples',
                         '8', '--scheduler', 'tcp://127.0.0.1:9'])
     assert code == 1 and 'error' in err
@@ -145,7 +145,7 @@ def test_a_progress_bar_counts_the_samples():
 
 
 def test_workers_running_other_code_are_refused():
-    from tensegrity_ros.tolerance_engine import _check_workers, WorkerMismatch
+    from tensegrity_ros.tolerance.engine import _check_workers, WorkerMismatch
 
     class Client:
         def __init__(self, answer):

@@ -24,7 +24,7 @@ import psutil
 import pytest
 
 from tensegrity_ros.tolerance import module_design, tolerance_study
-from tensegrity_ros.tolerance_engine import local_cluster, run_chunks
+from tensegrity_ros.tolerance.engine import local_cluster, run_chunks
 
 BIN = Path(sys.executable).parent
 cloudpickle.register_pickle_by_value(sys.modules[__name__])     # workers need no test path

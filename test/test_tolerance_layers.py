@@ -6,9 +6,11 @@ import sys
 
 from test_import_layers import GRAPH
 
-TOLERANCE = {'tensegrity_ros.tolerance', 'tensegrity_ros.tolerance_engine',
-             'tensegrity_ros.tolerance_replay', 'tensegrity_ros.tolerance_report',
-             'tensegrity_ros.tolerance_command', 'tensegrity_ros.core.tolerance.sampling',
+TOLERANCE = {'tensegrity_ros.tolerance', 'tensegrity_ros.tolerance.design',
+             'tensegrity_ros.tolerance.study', 'tensegrity_ros.tolerance.result',
+             'tensegrity_ros.tolerance.engine', 'tensegrity_ros.tolerance.replay',
+             'tensegrity_ros.tolerance.report',
+             'tensegrity_ros.cli.tolerance', 'tensegrity_ros.core.tolerance.sampling',
              'tensegrity_ros.core.tolerance.questions',
              'tensegrity_ros.core.tolerance.sample_statistics',
              'tensegrity_ros.core.tolerance.branch_batch', 'tensegrity_ros.core.tolerance.batch'}
@@ -27,7 +29,7 @@ def closure(name):
 def test_the_tolerance_modules_exist_and_only_the_engine_imports_dask():
     assert TOLERANCE <= GRAPH.keys()
     users = {name for name, (_, outside) in GRAPH.items() if outside & {'dask', 'distributed'}}
-    assert users == {'tensegrity_ros.tolerance_engine'}
+    assert users == {'tensegrity_ros.tolerance.engine'}
 
 
 def test_the_node_imports_no_tolerance_module():
@@ -39,7 +41,7 @@ def test_the_node_imports_no_tolerance_module():
 def test_importing_the_node_and_the_cli_loads_no_dask():
     code = ('import sys, tensegrity_ros.node, tensegrity_ros.cli; '
             'bad = sorted(m for m in sys.modules if m.split(".")[0] in ("dask", "distributed")'
-            ' or m.startswith("tensegrity_ros.tolerance_engine")); print(bad); '
+            ' or m.startswith("tensegrity_ros.tolerance.engine")); print(bad); '
             'sys.exit(1 if bad else 0)')
     result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                             timeout=120)

@@ -32,7 +32,8 @@ def stack_passage_line(passage, names):
 
 
 def undecided_record(undecided):
-    """A :class:`~.core.tracking.ModuleUndecided` or :class:`~.core.stack.StackUndecided`
+    """A :class:`~.core.module.tracking.ModuleUndecided` or
+    :class:`~.core.neck.stack.StackUndecided`
     as JSON: where (s, rho, the critical theta) and how uncertain (in s and in rho)."""
     doc = {'kind': 'undecided', 's': float(undecided.s),
            's_uncertainty': float(undecided.s_uncertainty)}

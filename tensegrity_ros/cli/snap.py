@@ -4,9 +4,9 @@
                     [params] [--theta1 T1 --theta2 T2] [--hold S]
                     [--json] [--csv FILE] [--plot FILE.png]
 
-The module flags and the start equilibrium are the ``track`` command's (parsed by
-:mod:`.cli`, which hooks this in); this file adds the dynamic options, runs
-:func:`~.core.dynamics.simulate_snap` and writes the summary, the history (CSV)
+The module flags and the start equilibrium are the ``track`` command's (the helpers of
+:mod:`.common`); this file adds the dynamic options, runs
+:func:`~..core.dynamics.simulate_snap` and writes the summary, the history (CSV)
 and the plot (matplotlib, Agg, imported only when a plot is asked for).
 """
 from __future__ import annotations
@@ -15,7 +15,9 @@ import csv
 import json
 import math
 
-from .core.dynamics.module_snap import MAX_HOLD, simulate_snap
+from .common import (add_parameter_options, finite_float, make_params, parameter_values,
+                     start_equilibrium, start_guess)
+from ..core.dynamics import MAX_HOLD, simulate_snap
 
 HELP = 'simulate the motion of a snap-through (rods with mass, pivot damping)'
 DESCRIPTION = (
@@ -27,28 +29,34 @@ DESCRIPTION = (
 CSV_COLUMNS = ('t', 'rho', 'theta1', 'theta2', 'theta1_dot', 'theta2_dot', 'actuator_force')
 
 
-def add_snap_parser(subparsers, add_module_options, number):
-    """The ``snap`` subparser: the module flags (``add_module_options``) plus ours."""
+def add_parser(subparsers):
+    """Register ``snap``: the module flags plus the dynamic options."""
     p = subparsers.add_parser('snap', help=HELP, description=DESCRIPTION)
-    add_module_options(p)
-    p.add_argument('--to-rho', dest='to_rho', type=number, metavar='R1', required=True,
+    add_parameter_options(p)
+    p.add_argument('--to-rho', dest='to_rho', type=finite_float, metavar='R1', required=True,
                    help='rho at the end of the ramp (m)')
-    p.add_argument('--theta1', type=number, metavar='RAD',
+    p.add_argument('--theta1', type=finite_float, metavar='RAD',
                    help='start guess for theta1 (rad); needs --theta2')
-    p.add_argument('--theta2', type=number, metavar='RAD',
+    p.add_argument('--theta2', type=finite_float, metavar='RAD',
                    help='start guess for theta2 (rad); needs --theta1')
-    p.add_argument('--rate', type=number, metavar='V', required=True,
+    p.add_argument('--rate', type=finite_float, metavar='V', required=True,
                    help='actuator speed of the ramp (m/s, > 0)')
-    p.add_argument('--damping', type=number, metavar='C', required=True,
+    p.add_argument('--damping', type=finite_float, metavar='C', required=True,
                    help='viscous damping at each pivot (N m s/rad, >= 0)')
-    p.add_argument('--hold', type=number, metavar='S',
+    p.add_argument('--hold', type=finite_float, metavar='S',
                    help=f'seconds held at --to-rho (default: until settled, at most '
                         f'{MAX_HOLD:g} s)')
     p.add_argument('--json', action='store_true', help='the summary as JSON')
     p.add_argument('--csv', metavar='FILE', help='write the time history as CSV')
     p.add_argument('--plot', metavar='FILE.png',
                    help="write theta, theta' and the actuator force against time as PNG")
-    return p
+    p.set_defaults(func=run)
+
+
+def run(args, out):
+    """``tensegrity snap``: the module and start as ``track`` parses them; exit status 0."""
+    start = make_params(parameter_values(args))
+    return run_snap(args, out, start, start_equilibrium(start, start_guess(args)).theta)
 
 
 def run_snap(args, out, start, start_theta):

@@ -1,6 +1,6 @@
 """A tolerance study's report: the text table and the PNG figures (matplotlib, Agg).
 
-Input is :meth:`.tolerance.ToleranceResult.summary` (and the result itself for the
+Input is :meth:`.result.ToleranceResult.summary` (and the result itself for the
 histograms); nothing here computes a statistic.
 """
 from __future__ import annotations

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .core.module.model import ModuleParams, PARAMETER_NAMES
-from .core.module.tracking import track_module
-from .core.neck.stack import Stack, track_stack
-from .core.simulation.start_state import start_state
+from ..core.module import ModuleParams, PARAMETER_NAMES
+from ..core.module.tracking import track_module
+from ..core.neck.stack import Stack, track_stack
+from ..core.simulation.start_state import start_state
 
 #: ModuleParams field -> CLI option name.
 CLI_NAMES = {'rho': 'rho', 'L1': 'L1', 'L2': 'L2', 'ka': 'ka', 'kb': 'kb', 'kc': 'kc',

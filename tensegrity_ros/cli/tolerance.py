@@ -1,4 +1,4 @@
-"""``tensegrity tolerance``: the command-line face of :mod:`.tolerance` (issue 34).
+"""``tensegrity tolerance``: the command-line face of :mod:`..tolerance` (issue 34).
 
     tensegrity tolerance range     [module options] --tol NAME=SPREAD ... [--at-rho R]
     tensegrity tolerance path      [module options | --config FILE] --to NAME=V[,NAME=V] ...
@@ -15,10 +15,11 @@ import argparse
 import os
 import sys
 
-from .core.tolerance.sample_statistics import INTERVALS
-from .core.tolerance.sampling import SAMPLERS
-from .tolerance import (module_design, neck_design, QUESTIONS, tolerance_study, ToleranceError,
-                        write_text_file)
+from .common import add_parameter_options, finite_float, parameter_values, positive_int
+from ..core.tolerance.sample_statistics import INTERVALS
+from ..core.tolerance.sampling import SAMPLERS
+from ..tolerance import (module_design, neck_design, QUESTIONS, tolerance_study, ToleranceError,
+                         write_text_file)
 
 _HELP = {
     'range': 'one module: the stable rho interval through the working point (as `tensegrity '
@@ -30,11 +31,10 @@ _HELP = {
 }
 
 
-def add_parser(sub, add_parameter_options, values_of, finite_float, positive_int):
+def add_parser(subparsers):
     """Register ``tolerance`` and its questions on the CLI's subparsers: the design's
-    options as the other commands take them (``add_parameter_options``; ``values_of(args)``
-    reads them back, checked), and :func:`run_tolerance` as the command."""
-    p = sub.add_parser(
+    options as the other commands take them, and :func:`run` as the command."""
+    p = subparsers.add_parser(
         'tolerance', help='design under tolerances: sample a toleranced module or neck',
         description='Sample a design whose parameters scatter by the given tolerances '
                     '(--tol), ask every sample one question, and report quantiles (1, 5, 50, '
@@ -48,9 +48,13 @@ def add_parser(sub, add_parameter_options, values_of, finite_float, positive_int
         q = questions.add_parser(name, help=_HELP[name], description=_HELP[name])
         add_parameter_options(q)
         _add_common(q, finite_float, positive_int, name)
-        q.set_defaults(func=lambda args, out: run_tolerance(args, out, values_of(args),
-                                                            finite_float))
+        q.set_defaults(func=run)
     return p
+
+
+def run(args, out):
+    """``tensegrity tolerance QUESTION``: the design's options read back, checked."""
+    return run_tolerance(args, out, parameter_values(args), finite_float)
 
 
 def _add_common(q, finite_float, positive_int, question):

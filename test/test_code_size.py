@@ -26,7 +26,6 @@ KNOWN = {
     ('class', 'node.py', 'TensegrityNode'): 705,
     ('file', 'core/simulator.py', ''): 674,
     ('class', 'core/simulator.py', 'Simulator'): 520,
-    ('function', 'core/batch_solver.py', '_batch_block'): 79,
     ('function', 'core/degenerate_curves.py', 'degenerate_curves'): 113,
     ('function', 'core/operation_range.py', '_localise'): 67,
     ('function', 'core/two_stable_limit.py', 'two_stable_limit'): 66,

@@ -28,7 +28,6 @@ KNOWN = {
     ('class', 'core/simulator.py', 'Simulator'): 520,
     ('function', 'core/degenerate_curves.py', 'degenerate_curves'): 113,
     ('function', 'core/operation_range.py', '_localise'): 67,
-    ('function', 'core/two_stable_limit.py', 'two_stable_limit'): 66,
 }
 
 

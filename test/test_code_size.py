@@ -27,7 +27,6 @@ KNOWN = {
     ('file', 'core/simulator.py', ''): 674,
     ('class', 'core/simulator.py', 'Simulator'): 520,
     ('function', 'core/degenerate_curves.py', 'degenerate_curves'): 113,
-    ('function', 'core/operation_range.py', '_localise'): 67,
 }
 
 

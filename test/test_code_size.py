@@ -26,7 +26,6 @@ KNOWN = {
     ('class', 'node.py', 'TensegrityNode'): 705,
     ('file', 'core/simulator.py', ''): 674,
     ('class', 'core/simulator.py', 'Simulator'): 520,
-    ('function', 'core/degenerate_curves.py', 'degenerate_curves'): 113,
 }
 
 

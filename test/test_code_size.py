@@ -24,8 +24,6 @@ KNOWN = {
     ('file', 'figures.py', ''): 753,
     ('file', 'node.py', ''): 954,
     ('class', 'node.py', 'TensegrityNode'): 705,
-    ('file', 'core/simulator.py', ''): 674,
-    ('class', 'core/simulator.py', 'Simulator'): 520,
 }
 
 

@@ -20,13 +20,6 @@ LIMITS = {'file': 600, 'class': 400, 'function': 60}
 KNOWN = {
     ('file', 'node.py', ''): 954,
     ('class', 'node.py', 'TensegrityNode'): 705,
-    ('file', 'core/module/polynomial_solver.py', ''): 633,
-    ('file', 'core/simulation/simulator.py', ''): 674,
-    ('class', 'core/simulation/simulator.py', 'Simulator'): 520,
-    ('function', 'core/module/batch_solver.py', '_batch_block'): 79,
-    ('function', 'core/analysis/degenerate_curves.py', 'degenerate_curves'): 113,
-    ('function', 'core/analysis/operation_range.py', '_localise'): 67,
-    ('function', 'core/analysis/two_stable_limit.py', 'two_stable_limit'): 66,
 }
 
 

@@ -20,8 +20,8 @@ from scipy.optimize import root
 from .bifurcation_model import (_axis_label, _critical_mode, _Family, _FLATS, _gh, _newton,
                                 _System, _wrap, BRANCH_POINT, FOLD, MIRROR, STABLE_BOUNDARY_TOL,
                                 SWAP, SWAP_MIRROR)
+from ..module import InvalidParameterError, ModuleParams
 from ..module.batch_solver import equilibria_batch
-from ..module.model import InvalidParameterError, ModuleParams
 from ..module.polynomial_solver import equilibria
 
 # ---------------------------------------------------------------------------
@@ -382,9 +382,32 @@ def degenerate_curves(base: ModuleParams, x, x_range, y, y_range, *, grid=(48, 4
     cell, and a curve that only ever crosses grid edges together with another
     curve that cancels its count change.
     """
+    family, lo, hi = _box(base, (x, y), x_range, y_range)
+    xl, yl = _axis_label(x), _axis_label(y)
+    seg_a, seg_b, edge_ids = _count_changes(family, lo, hi, grid, edge_points)
+    found = _Found(lo, hi, grid, 1.0 / (edge_points - 1))
+    for i in range(len(seg_a)):
+        if found.skips(edge_ids[i], seg_a[i], seg_b[i]):
+            continue
+        a, b = _locate_changes(family, seg_a[i:i + 1], seg_b[i:i + 1])
+        for qa, qb in zip(a, b):
+            seed = _seed(family, qa, qb, lo, hi)
+            if seed is None or _on_traced(*seed, found.traced_z):
+                continue
+            system, z = seed
+            curve_z, closed, ends = _trace_both(system, z, step, max_step, min_step, max_steps)
+            if len(curve_z) < 2:
+                continue
+            found.add(system, curve_z, _make_curve(system, curve_z, xl, yl, closed, ends))
+    return found.curves
+
+
+def _box(base, axes, x_range, y_range):
+    """(family, lo, hi): the plane of ``axes`` through ``base`` and the box's corners;
+    raises for a box that is empty or has a corner with invalid parameters."""
     if not isinstance(base, ModuleParams):
         raise TypeError('base must be ModuleParams')
-    family = _Family(base, (x, y))
+    family = _Family(base, axes)
     lo = np.array([x_range[0], y_range[0]], float)
     hi = np.array([x_range[1], y_range[1]], float)
     if not np.all(hi > lo):
@@ -392,10 +415,14 @@ def degenerate_curves(base: ModuleParams, x, x_range, y, y_range, *, grid=(48, 4
     for corner in ((lo[0], lo[1]), (lo[0], hi[1]), (hi[0], lo[1]), (hi[0], hi[1])):
         if not family.valid(corner):
             raise InvalidParameterError(f'box corner {corner} gives invalid parameters')
-    xl, yl = _axis_label(x), _axis_label(y)
-    nx, ny = grid
+    return family, lo, hi
 
-    # grid nodes and their keys
+
+def _count_changes(family, lo, hi, grid, edge_points):
+    """(a, b, ids): the segments [a, b] over which the equilibrium count (total and stable)
+    changes, on the edges of a ``grid`` over the box (id ``('grid', (node, node))``) and,
+    finer (``edge_points``), along its four edges (id ``('box', fixed axis, value)``)."""
+    nx, ny = grid
     us, vs = np.linspace(0, 1, nx), np.linspace(0, 1, ny)
     U, V = np.meshgrid(us, vs, indexing='ij')
     nodes = lo + np.stack([U.ravel(), V.ravel()], 1) * (hi - lo)
@@ -405,7 +432,6 @@ def degenerate_curves(base: ModuleParams, x, x_range, y, y_range, *, grid=(48, 4
     seg_a = [nodes[changed[:, 0]]]
     seg_b = [nodes[changed[:, 1]]]
     edge_ids = [('grid', (int(e[0]), int(e[1]))) for e in changed]
-    # the four box edges, finer
     s = np.linspace(0, 1, edge_points)
     for fixed_axis in (0, 1):
         for val in (0.0, 1.0):
@@ -418,49 +444,52 @@ def degenerate_curves(base: ModuleParams, x, x_range, y, y_range, *, grid=(48, 4
             seg_a.append(q[ch])
             seg_b.append(q[ch + 1])
             edge_ids.extend([('box', fixed_axis, val)] * len(ch))
-    seg_a = np.concatenate(seg_a)
-    seg_b = np.concatenate(seg_b)
+    return np.concatenate(seg_a), np.concatenate(seg_b), edge_ids
 
-    curves, traced_z, covered, box_ends = [], [], set(), []
-    spacing = 1.0 / (edge_points - 1)
-    for i in range(len(seg_a)):
-        eid = edge_ids[i]
-        if eid[0] == 'box':
-            # a box-edge seed: skip if a traced curve already ends on this stretch
-            ua, ub = (seg_a[i] - lo) / (hi - lo), (seg_b[i] - lo) / (hi - lo)
-            _, axis, val = eid
-            lo_s = min(ua[1 - axis], ub[1 - axis]) - spacing
-            hi_s = max(ua[1 - axis], ub[1 - axis]) + spacing
-            if any(ax == axis and v == val and lo_s <= w <= hi_s for ax, v, w in box_ends):
-                continue
-        elif eid[1] in covered:
-            continue
-        a, b = _locate_changes(family, seg_a[i:i + 1], seg_b[i:i + 1])
-        for qa, qb in zip(a, b):
-            cand = _degenerate_candidate(family, qa, qb)
-            if cand is None:
-                continue
-            e, q_side = cand
-            system, theta_part = _system_for(family, q_side, (e.theta1, e.theta2), lo, hi)
-            z = _refine_seed(system, theta_part, qa, qb)
-            if z is None:
-                continue
-            if _on_traced(system, z, traced_z):
-                continue
-            curve_z, closed, ends = _trace_both(system, z, step, max_step, min_step, max_steps)
-            if len(curve_z) < 2:
-                continue
-            traced_z.append((system, np.array(curve_z)))
-            curve = _make_curve(system, curve_z, xl, yl, closed, ends)
-            curves.append(curve)
-            uv = (curve.points - lo) / (hi - lo)
-            covered |= _crossed_edges(uv, nx, ny)
-            for end in (uv[0], uv[-1]):
-                for axis in (0, 1):
-                    for val in (0.0, 1.0):
-                        if abs(end[axis] - val) < 1e-9:
-                            box_ends.append((axis, val, end[1 - axis]))
-    return curves
+
+def _seed(family, qa, qb, lo, hi):
+    """(system, z): the degenerate equilibrium between the plane points ``qa`` and ``qb``
+    (a count change) solved on the system that is regular there, or None."""
+    cand = _degenerate_candidate(family, qa, qb)
+    if cand is None:
+        return None
+    e, q_side = cand
+    system, theta_part = _system_for(family, q_side, (e.theta1, e.theta2), lo, hi)
+    z = _refine_seed(system, theta_part, qa, qb)
+    return None if z is None else (system, z)
+
+
+class _Found:
+    """The curves traced so far, and what they account for: the grid edges they cross
+    and where they end on the box's edges (seeds there need no tracing again)."""
+
+    def __init__(self, lo, hi, grid, spacing):
+        self.lo, self.hi, self.grid, self.spacing = lo, hi, grid, spacing
+        self.curves, self.traced_z, self.covered, self.box_ends = [], [], set(), []
+
+    def skips(self, eid, a, b):
+        """Whether the count change on segment [a, b] (id ``eid``) is a traced curve's:
+        a grid edge it crosses, or a box-edge stretch it ends on."""
+        if eid[0] != 'box':
+            return eid[1] in self.covered
+        lo, hi = self.lo, self.hi
+        ua, ub = (a - lo) / (hi - lo), (b - lo) / (hi - lo)
+        _, axis, val = eid
+        lo_s = min(ua[1 - axis], ub[1 - axis]) - self.spacing
+        hi_s = max(ua[1 - axis], ub[1 - axis]) + self.spacing
+        return any(ax == axis and v == val and lo_s <= w <= hi_s for ax, v, w in self.box_ends)
+
+    def add(self, system, curve_z, curve):
+        """Record a traced curve (solution rows ``curve_z`` of ``system``)."""
+        self.traced_z.append((system, np.array(curve_z)))
+        self.curves.append(curve)
+        uv = (curve.points - self.lo) / (self.hi - self.lo)
+        self.covered |= _crossed_edges(uv, *self.grid)
+        for end in (uv[0], uv[-1]):
+            for axis in (0, 1):
+                for val in (0.0, 1.0):
+                    if abs(end[axis] - val) < 1e-9:
+                        self.box_ends.append((axis, val, end[1 - axis]))
 
 
 def _full_coordinates(system, zs):

@@ -15,8 +15,9 @@ import numpy as np
 
 from .bifurcation_model import (_critical_mode, _FLATS, _gh, _raw, _scale, _symmetries, _wrap,
                                 BOUND_TOL, BRANCH_POINT, FOLD, LIMIT, MIRROR, SWAP, SWAP_MIRROR)
+from .branch_end_solves import _flat_degenerate_rhos, _fold_newton, _local_terms, _swap_newton
+from ..module import ModuleParams
 from ..module.classification import DEGENERACY_TOL, hessian_eigenvalues
-from ..module.model import ModuleParams
 from ..module.polynomial_solver import equilibria
 
 # -- Operation range: continuation of one stable branch in rho ---------------
@@ -193,24 +194,6 @@ def _mode(h11, h12, h22, lam):
     return (a / n, b / n) if n > 0 else (1.0, 0.0)
 
 
-def _local_terms(P, t1, t2):
-    """(s1, c1, s2, c2, g1, g2, h11, h12, h22, k12) at (t1, t2) for raw parameters P:
-    the gradient, the Hessian and k12 = kc L1 L2 sin(t1 + t2) (their third-derivative
-    building block), shared by the branch and extended-system solvers."""
-    rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = P
-    a1 = (ka + kc) * rho + f3x
-    a2 = (kb + kc) * rho - f4x
-    s1, c1, s2, c2 = math.sin(t1), math.cos(t1), math.sin(t2), math.cos(t2)
-    s12 = s1 * c2 + c1 * s2
-    c12 = c1 * c2 - s1 * s2
-    g1 = L1 * (a1 * s1 - kc * L2 * s12 - f3y * c1)
-    g2 = L2 * (a2 * s2 - kc * L1 * s12 - f4y * c2)
-    h11 = L1 * (a1 * c1 - kc * L2 * c12 + f3y * s1)
-    h22 = L2 * (a2 * c2 - kc * L1 * c12 + f4y * s2)
-    h12 = -kc * L1 * L2 * c12
-    return s1, c1, s2, c2, g1, g2, h11, h12, h22, kc * L1 * L2 * s12
-
-
 def _branch_state(P, t1, t2):
     """At an equilibrium: (lambda_min, lambda_max, mode, dtheta/drho, dlambda_min/drho)."""
     rho, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = P
@@ -243,98 +226,6 @@ def _min_eig(P, t1, t2):
     return _eig2(h11, -kc * L1 * L2 * c12, h22)
 
 
-def _fold_newton(P, t1, t2, rho, max_iter=16):
-    """Newton on {G = 0, det H = 0} in (t1, t2, rho), analytic Jacobian."""
-    P = P.copy()
-    for _ in range(max_iter):
-        P[0] = rho
-        _, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = P
-        a1 = (ka + kc) * rho + f3x
-        a2 = (kb + kc) * rho - f4x
-        s1, c1, s2, c2, g1, g2, h11, h12, h22, k12 = _local_terms(P, t1, t2)
-        h11_1, h11_2, h11_r = -g1, k12, L1 * (ka + kc) * c1
-        h22_1, h22_2, h22_r = k12, -g2, L2 * (kb + kc) * c2
-        ddet = [h11_1 * h22 + h11 * h22_1 - 2 * h12 * k12,
-                h11_2 * h22 + h11 * h22_2 - 2 * h12 * k12,
-                h11_r * h22 + h11 * h22_r]
-        s = max(abs(h11), abs(h22), abs(h12), 1e-300)
-        s_g = max(L1, L2) * max(abs(a1), abs(a2), abs(f3y), abs(f4y), kc * L1, kc * L2)
-        J = np.array([[h11, h12, L1 * (ka + kc) * s1],
-                      [h12, h22, L2 * (kb + kc) * s2],
-                      [ddet[0] / s, ddet[1] / s, ddet[2] / s]])
-        F = np.array([g1, g2, (h11 * h22 - h12 * h12) / s])
-        try:
-            d = np.linalg.solve(J, -F)
-        except np.linalg.LinAlgError:
-            return t1, t2, rho, False
-        t1, t2, rho = t1 + d[0], t2 + d[1], rho + d[2]
-        if not np.all(np.isfinite(d)) or abs(d[0]) + abs(d[1]) > 2.0:
-            return t1, t2, rho, False
-        size = abs(d[0]) + abs(d[1]) + abs(d[2]) / max(rho, 1e-300)
-        if size < 1e-14:
-            return t1, t2, rho, True
-        # ill-conditioned (a nearly symmetric branch point nearby): accept a point
-        # whose residual is at rounding level once the steps are small
-        if size < 1e-8 and max(abs(F[0]), abs(F[1])) <= 1e-13 * s_g and abs(F[2]) <= 1e-11 * s:
-            return t1, t2, rho, True
-    return t1, t2, rho, False
-
-
-def _swap_newton(P, t, rho, mirror, max_iter=16):
-    """Newton on the restricted branch-point system of a swap symmetry, (t, rho).
-
-    ``mirror`` False: theta = (t, t), breaking mode (1, -1);
-    True: theta = (t, -t), breaking mode (1, 1)."""
-    P = P.copy()
-    sg = -1.0 if mirror else 1.0
-    for _ in range(max_iter):
-        P[0] = rho
-        _, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = P
-        t1, t2 = t, sg * t
-        s1, c1, s2, c2, g1, g2, h11, h12, h22, k12 = _local_terms(P, t1, t2)
-        # f1 = g1(t, sg t); f2 = (h11 + h22)/2 - sg h12
-        f1, f2 = g1, 0.5 * (h11 + h22) - sg * h12
-        j11 = h11 + sg * h12
-        j12 = L1 * (ka + kc) * s1
-        dh11 = -g1 + sg * k12
-        dh22 = k12 + sg * (-g2)
-        dh12 = k12 * (1 + sg)
-        j21 = 0.5 * (dh11 + dh22) - sg * dh12
-        j22 = 0.5 * (L1 * (ka + kc) * c1 + L2 * (kb + kc) * c2)
-        det = j11 * j22 - j12 * j21
-        if det == 0.0:
-            return t, rho, False
-        dt = -(j22 * f1 - j12 * f2) / det
-        dr = -(j11 * f2 - j21 * f1) / det
-        t, rho = t + dt, rho + dr
-        if not (math.isfinite(dt) and math.isfinite(dr)) or abs(dt) > 2.0:
-            return t, rho, False
-        if abs(dt) + abs(dr) / max(abs(rho), 1e-300) < 1e-14:
-            return t, rho, True
-    return t, rho, abs(dt) + abs(dr) < 1e-11
-
-
-def _flat_degenerate_rhos(P, flat):
-    """All rho with det H(flat; rho) = 0 (a quadratic in rho)."""
-    _, L1, L2, ka, kb, kc, f3x, f3y, f4x, f4y = P
-    c1, c2 = math.cos(flat[0]), math.cos(flat[1])
-    c12 = c1 * c2
-    al1, be1 = L1 * (ka + kc) * c1, L1 * (f3x * c1 - kc * L2 * c12)
-    al2, be2 = L2 * (kb + kc) * c2, L2 * (-f4x * c2 - kc * L1 * c12)
-    h12 = -kc * L1 * L2 * c12
-    a, b, c = al1 * al2, al1 * be2 + al2 * be1, be1 * be2 - h12 * h12
-    if a == 0.0:
-        return [] if b == 0.0 else [-c / b]
-    disc = b * b - 4.0 * a * c
-    if disc < 0.0:
-        return []
-    q = -0.5 * (b + math.copysign(math.sqrt(disc), b))     # stable quadratic formula
-    roots = [q / a]
-    if q != 0.0:
-        roots.append(c / q)
-    return roots
-
-
 def _theta_close(a, b, tol):
     return abs(_wrap(a[0] - b[0])) <= tol and abs(_wrap(a[1] - b[1])) <= tol
 
@@ -364,6 +255,40 @@ def _localise(P, sym, t1, t2, rho, sigma, est, dtheta, v):
     for f in _FLATS:
         if _theta_close((t1, t2), f, 1e-9):
             flat = f
+    candidates, too_far = _end_candidates(P, sym, t1, t2, rho, sigma, est, dtheta, v, flat)
+    best = None
+    for r, th, kind, symmetry in candidates:
+        d = (r - rho) * sigma
+        if not (-1e-12 * max(1.0, abs(rho)) <= d <= 3.0 * est + 1e-12):
+            continue
+        # the end of a stable branch: eigenvalues (0, +); a negative second eigenvalue
+        # means the solve landed on another sheet (e.g. beyond an earlier fold)
+        Q = list(P)
+        Q[0] = r
+        if not _min_eig(Q, th[0], th[1])[1] > 0.0:
+            continue
+        sqrt_law = kind == FOLD or (symmetry == MIRROR and flat is None)
+        if not _on_the_branch(t1, t2, rho, dtheta, r, th, sqrt_law):
+            if sqrt_law:
+                too_far = min(too_far, d)
+            continue
+        if best is None or d < best[0]:
+            best = (d, r, th, kind, symmetry)
+    if best is None or too_far < best[0]:     # (unloaded L2 = 1.2539 took rho = 0 for 0.127)
+        return None
+    _, r, th, kind, symmetry = best
+    if kind == FOLD:
+        # a generic solve can still land on a non-symmetric branch point: classify
+        Q = list(P)
+        Q[0] = r
+        kind = _kind_at(Q, th[0], th[1])
+    return r, th, kind, symmetry
+
+
+def _end_candidates(P, sym, t1, t2, rho, sigma, est, dtheta, v, flat):
+    """([(rho*, theta*, kind, symmetry)], too_far): the ends the branch through (t1, t2,
+    rho) may head for, solved on the system its symmetry (``sym``, ``flat`` the flat
+    configuration it is on or None) makes regular; too_far as :func:`_merges_with_flats`."""
     candidates, too_far = [], math.inf      # too_far: the nearest end the sqrt law can't judge
     if MIRROR in sym:
         if flat is not None:
@@ -384,39 +309,19 @@ def _localise(P, sym, t1, t2, rho, sigma, est, dtheta, v):
             a, b, r, ok = _fold_newton(P, t1, t2, rho)
             if ok:
                 candidates.append((r, (a, b), FOLD, None))
-    best = None
-    for r, th, kind, symmetry in candidates:
-        d = (r - rho) * sigma
-        if not (-1e-12 * max(1.0, abs(rho)) <= d <= 3.0 * est + 1e-12):
-            continue
-        # the end of a stable branch: eigenvalues (0, +); a negative second eigenvalue
-        # means the solve landed on another sheet (e.g. beyond an earlier fold)
-        Q = list(P)
-        Q[0] = r
-        if not _min_eig(Q, th[0], th[1])[1] > 0.0:
-            continue
-        if kind == FOLD or (symmetry == MIRROR and flat is None):
-            # theta - theta* ~ sqrt(distance): theta* ~ theta + 2 d dtheta/drho
-            pred = (t1 + 2 * (r - rho) * dtheta[0], t2 + 2 * (r - rho) * dtheta[1])
-            gap = max(abs(_wrap(t1 - th[0])), abs(_wrap(t2 - th[1])))
-            if not _theta_close(pred, th, 0.35 * gap + 1e-7):
-                too_far = min(too_far, d)
-                continue
-        else:
-            pred = (t1 + (r - rho) * dtheta[0], t2 + (r - rho) * dtheta[1])
-            if not _theta_close(pred, th, 0.1 + 1e-3):
-                continue
-        if best is None or d < best[0]:
-            best = (d, r, th, kind, symmetry)
-    if best is None or too_far < best[0]:     # (unloaded L2 = 1.2539 took rho = 0 for 0.127)
-        return None
-    _, r, th, kind, symmetry = best
-    if kind == FOLD:
-        # a generic solve can still land on a non-symmetric branch point: classify
-        Q = list(P)
-        Q[0] = r
-        kind = _kind_at(Q, th[0], th[1])
-    return r, th, kind, symmetry
+    return candidates, too_far
+
+
+def _on_the_branch(t1, t2, rho, dtheta, r, th, sqrt_law):
+    """Whether the end (r, th) lies where the branch through (t1, t2, rho) heads: theta -
+    theta* ~ sqrt(distance) at a fold or a merge with a flat (``sqrt_law``: theta* ~
+    theta + 2 d dtheta/drho), linear at a symmetric branch point."""
+    if sqrt_law:
+        pred = (t1 + 2 * (r - rho) * dtheta[0], t2 + 2 * (r - rho) * dtheta[1])
+        gap = max(abs(_wrap(t1 - th[0])), abs(_wrap(t2 - th[1])))
+        return _theta_close(pred, th, 0.35 * gap + 1e-7)
+    pred = (t1 + (r - rho) * dtheta[0], t2 + (r - rho) * dtheta[1])
+    return _theta_close(pred, th, 0.1 + 1e-3)
 
 
 def _kind_at(P, t1, t2):

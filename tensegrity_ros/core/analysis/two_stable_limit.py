@@ -12,7 +12,7 @@ import numpy as np
 from scipy.optimize import root
 
 from .bifurcation_model import _CSTEP, _gh, _newton, _raw, _scale, _wrap
-from ..module.model import ModuleParams
+from ..module import ModuleParams
 
 # ---------------------------------------------------------------------------
 # Point C of fig. 6: the tip of the 2-stable region
@@ -77,7 +77,18 @@ def two_stable_limit(L2=1.0, *, L1=1.0, k=100.0, ka=None, kb=None, kc=None,
     kc = k if kc is None else kc
     sign = -1.0 if pushing else 1.0
     base = ModuleParams(rho=1.0, L1=L1, L2=L2, ka=ka, kb=kb, kc=kc, f3x=f3x, f4x=f4x)
-    P0 = _raw(base)
+    z = _umbilic(_raw(base), _umbilic_guess(L1, L2, ka, kb, kc, sign))
+    t1, t2, rho, F3, F4 = (float(v) for v in z)
+    params = ModuleParams(rho=rho, L1=L1, L2=L2, ka=ka, kb=kb, kc=kc, f3x=f3x, f4x=f4x,
+                          f3y=F3, f4y=F4)
+    return TwoStableLimit(F3=F3, F4=F4, rho=rho, theta=(float(_wrap(t1)), float(_wrap(t2))),
+                          axis=_horn_axis(t1, t2, L1, L2, ka, kb, kc), params=params)
+
+
+def _umbilic(P0, z0):
+    """(theta1, theta2, rho, F3, F4) with G = 0 and H = 0 for the raw parameters ``P0``
+    (their rho, f3y, f4y replaced), by Newton from ``z0`` (complex-step Jacobian), else
+    Levenberg-Marquardt; RuntimeError if neither finds it."""
     s = _scale(P0)
 
     def residual(z):
@@ -91,7 +102,6 @@ def two_stable_limit(L2=1.0, *, L1=1.0, k=100.0, ka=None, kb=None, kc=None,
         R = residual(Z)
         return R[0].real, (R.imag / _CSTEP).T
 
-    z0 = _umbilic_guess(L1, L2, ka, kb, kc, sign)
     z, ok = _newton(fj, z0, tol=1e-15, max_iter=40)
     if not ok:
         sol = root(lambda v: fj(v)[0], z0, jac=lambda v: fj(v)[1], method='lm',
@@ -99,9 +109,12 @@ def two_stable_limit(L2=1.0, *, L1=1.0, k=100.0, ka=None, kb=None, kc=None,
         z, ok = sol.x, bool(np.max(np.abs(fj(sol.x)[0])) < 1e-10)
     if not ok or z[2] <= 0:
         raise RuntimeError('no totally degenerate equilibrium found for these parameters')
-    t1, t2, rho, F3, F4 = (float(v) for v in z)
-    # the horn axis: kernel of dG/d(rho, F3, F4), on the side where dH is positive
-    # definite (the degenerate point opens into a minimum)
+    return z
+
+
+def _horn_axis(t1, t2, L1, L2, ka, kb, kc):
+    """The horn axis at C: the unit kernel of dG/d(rho, F3, F4), on the side where dH is
+    positive definite (the degenerate point opens into a minimum)."""
     c1, s1, c2, s2 = math.cos(t1), math.sin(t1), math.cos(t2), math.sin(t2)
     A, B = ka + kc, kb + kc
     row1 = np.array([L1 * A * s1, -L1 * c1, 0.0])
@@ -112,7 +125,4 @@ def two_stable_limit(L2=1.0, *, L1=1.0, k=100.0, ka=None, kb=None, kc=None,
     dh22 = L2 * (B * c2 * axis[0] + s2 * axis[2])
     if dh11 + dh22 < 0:
         axis = -axis
-    params = ModuleParams(rho=rho, L1=L1, L2=L2, ka=ka, kb=kb, kc=kc, f3x=f3x, f4x=f4x,
-                          f3y=F3, f4y=F4)
-    return TwoStableLimit(F3=F3, F4=F4, rho=rho, theta=(float(_wrap(t1)), float(_wrap(t2))),
-                          axis=axis, params=params)
+    return axis

@@ -13,13 +13,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import model as _module
+from . import InvalidParameterError, STANDARD_GRAVITY
+from .angle_polynomial import _horizontal_cosine, _polynomial, _reduced_coefficients, _scale
 from .classification import DEGENERACY_TOL, hessian_eigenvalues
-from .model import InvalidParameterError, STANDARD_GRAVITY
-from .polynomial_solver import (_horizontal_cosine, _polynomial, _reduced_coefficients, _scale,
-                                _solve_scalar, _wrap, CANDIDATE_TOL, CONTINUUM_TOL, CONVERGED_TOL,
+from .polynomial_solver import (_solve_scalar, _wrap, CANDIDATE_TOL, CONTINUUM_TOL, CONVERGED_TOL,
                                 CROWDED_RADIUS, IDENTICAL_TOL, NEWTON_MAX_ITER,
                                 SECOND_ROUTE_SEPARATION, UNIT_CIRCLE_TOL)
+from .. import module as _module
 
 
 @dataclass(frozen=True)
@@ -80,17 +80,14 @@ BATCH_BLOCK = 8192
 
 
 def _batch_block(v, g):
-    """:func:`equilibria_batch` on validated, flattened parameter arrays."""
-    f3y_total = v['f3y'] - 0.5 * v['m1'] * g
-    f4y_total = v['f4y'] - 0.5 * v['m2'] * g
-    physical = _reduced_coefficients(v['rho'], v['L1'], v['L2'], v['ka'], v['kb'], v['kc'],
-                                     v['f3x'], f3y_total, v['f4x'], f4y_total)
-    # solved in exactly rescaled constants (see _normalized); Hessians need the physical ones
-    physical_scale = _scale(*physical)
-    shift = np.frexp(physical_scale)[1]
-    consts = tuple(np.ldexp(c, -shift) for c in physical)
-    n = consts[0].size
-    scale = np.ldexp(physical_scale, -shift)              # exact, as for the constants
+    """:func:`equilibria_batch` on validated, flattened parameter arrays.
+
+    Rows with anything delicate (a candidate that did not converge, solutions crowding
+    together, a nearly singular equilibrium, an index sum that breaks Poincare-Hopf) are
+    solved again by the scalar path, which is the reference: the batch is a fast path
+    for the generic rows, not a second algorithm for the degenerate ones.
+    """
+    physical, consts, scale = _scaled_constants(v, g)
     laurent = _polynomial(*consts)                                # (n, 7), z^3 .. z^-3
     continuum = np.max(np.abs(laurent), axis=-1) <= CONTINUUM_TOL * scale ** 4
     t1, near_circle = _batch_circle_roots(laurent, continuum)     # (n, 6), nan if off circle
@@ -98,8 +95,42 @@ def _batch_block(v, g):
     if np.any(horizontal):                     # no vertical load: closed form, see equilibria()
         t1[horizontal] = _batch_horizontal_first_angles(
             *(c[horizontal] for c in (consts[0], consts[2], consts[4], consts[5])))
+    theta, hard = _polished(t1, consts, scale, near_circle)
+    valid = np.isfinite(theta[..., 0])
+    valid[continuum] = False
+    cols = [x[:, None] for x in physical]
+    eigenvalues = _batch_eigenvalues(theta, valid, cols, v['L1'], v['L2'])
+    hard |= _delicate(valid, eigenvalues)
+    hard &= ~continuum
+    if np.any(hard):
+        _solve_scalar_rows(np.nonzero(hard)[0], consts, cols, v, theta, valid, eigenvalues,
+                           continuum)
+    return EquilibriumBatch(theta=theta, eigenvalues=eigenvalues, valid=valid,
+                            continuum=continuum)
 
+
+def _scaled_constants(v, g):
+    """(physical, scaled, scale): the reduced constants, the same divided by the power of
+    two nearest their scale (exact, as in polynomial_solver._normalized: the
+    solve runs on these) and that scale divided likewise; Hessians need the physical ones."""
+    f3y_total = v['f3y'] - 0.5 * v['m1'] * g
+    f4y_total = v['f4y'] - 0.5 * v['m2'] * g
+    physical = _reduced_coefficients(v['rho'], v['L1'], v['L2'], v['ka'], v['kb'], v['kc'],
+                                     v['f3x'], f3y_total, v['f4x'], f4y_total)
+    physical_scale = _scale(*physical)
+    shift = np.frexp(physical_scale)[1]
+    consts = tuple(np.ldexp(c, -shift) for c in physical)
+    scale = np.ldexp(physical_scale, -shift)              # exact, as for the constants
+    return physical, consts, scale
+
+
+def _polished(t1, consts, scale, near_circle):
+    """(theta (n, 6, 2) packed, hard rows): the first angles ``t1`` (n, 6) completed by
+    their second-angle candidates and polished by Newton.  Hard: a root just off the
+    circle (``near_circle``), a candidate that did not converge, solutions crowding
+    together or more than six of them."""
     # From here on, one entry per real first angle / per candidate (rows ascending).
+    n = consts[0].size
     real = np.isfinite(t1)
     isolated = _isolated(t1)[real]
     root_rows = np.nonzero(real)[0]
@@ -112,11 +143,6 @@ def _batch_block(v, g):
     c = [x[root_index] for x in c]
     s1, s2, residual = _newton(roots[root_index], t2[root_index, route], *c, scale[rows])
     converged = residual <= CONVERGED_TOL
-    # Rows with anything delicate (a candidate that did not converge, solutions
-    # crowding together, a nearly singular equilibrium, an index sum that breaks
-    # Poincare-Hopf) are solved again by the scalar path, which is the reference:
-    # the batch is a fast path for the generic rows, not a second algorithm for
-    # the degenerate ones.
     hard = near_circle.copy()           # a root just off the circle: a pair about to merge
     hard[rows[~converged]] = True
     rows = rows[converged]
@@ -127,37 +153,37 @@ def _batch_block(v, g):
     valid, crowded = _batch_unique(theta)
     hard |= crowded
     hard |= valid.sum(axis=1) > 6
-    theta = _pack(theta, valid, 6)
-    valid = np.isfinite(theta[..., 0])
-    valid[continuum] = False
-    cols = [x[:, None] for x in physical]
-    eigenvalues = _batch_eigenvalues(theta, valid, cols, v['L1'], v['L2'])
+    return _pack(theta, valid, 6), hard
+
+
+def _delicate(valid, eigenvalues):
+    """Rows with a nearly singular equilibrium, or whose set breaks the Morse counts.
+
+    Without the first, the energy is a Morse function on the torus, so Poincare-Hopf
+    (#minima + #maxima - #saddles = 0) and the Morse inequalities (at least one minimum,
+    one maximum, two saddles) hold; a lost root breaks one of them."""
     low, high = eigenvalues[..., 0], eigenvalues[..., 1]
     small, big = np.abs(low), np.abs(high)
-    hard |= (valid & (np.minimum(small, big) <= HARD_TOL * np.maximum(small, big))).any(axis=1)
-    # All non-degenerate now (the line above): the energy is a Morse function on
-    # the torus, so Poincare-Hopf (#minima + #maxima - #saddles = 0) and the Morse
-    # inequalities (at least one minimum, one maximum, two saddles) hold; a lost
-    # root breaks one of them.
+    singular = (valid & (np.minimum(small, big) <= HARD_TOL * np.maximum(small, big))).any(axis=1)
     minima = (valid & (low > 0.0)).sum(axis=1)
     maxima = (valid & (high < 0.0)).sum(axis=1)
     saddles = valid.sum(axis=1) - minima - maxima
-    hard |= (minima + maxima != saddles) | (minima < 1) | (maxima < 1) | (saddles < 2)
-    hard &= ~continuum
-    if np.any(hard):
-        index = np.nonzero(hard)[0]
-        theta[index], valid[index] = np.nan, False
-        for row in index.tolist():
-            found = _solve_scalar(tuple(float(c[row]) for c in consts))
-            continuum[row] = found is None
-            for j, (u1, u2, _) in enumerate((found or ())[:6]):
-                theta[row, j] = (u1, u2)
-                valid[row, j] = True
-        eigenvalues[index] = _batch_eigenvalues(theta[index], valid[index],
-                                                [c[index] for c in cols],
-                                                v['L1'][index], v['L2'][index])
-    return EquilibriumBatch(theta=theta, eigenvalues=eigenvalues, valid=valid,
-                            continuum=continuum)
+    return singular | (minima + maxima != saddles) | (minima < 1) | (maxima < 1) | (saddles < 2)
+
+
+def _solve_scalar_rows(index, consts, cols, v, theta, valid, eigenvalues, continuum):
+    """Solve rows ``index`` again by the scalar path, in place of theta, valid,
+    eigenvalues and continuum."""
+    theta[index], valid[index] = np.nan, False
+    for row in index.tolist():
+        found = _solve_scalar(tuple(float(c[row]) for c in consts))
+        continuum[row] = found is None
+        for j, (u1, u2, _) in enumerate((found or ())[:6]):
+            theta[row, j] = (u1, u2)
+            valid[row, j] = True
+    eigenvalues[index] = _batch_eigenvalues(theta[index], valid[index],
+                                            [c[index] for c in cols],
+                                            v['L1'][index], v['L2'][index])
 
 
 #: For a first angle with no other within ROOT_SEPARATION (chord length on the

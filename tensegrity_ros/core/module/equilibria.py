@@ -1,9 +1,10 @@
 """Every equilibrium of one module, exactly (docs/model.md section 3): the entry points.
 
-The work is split by concept: :mod:`.module.polynomial_solver` (elimination to a degree-6
-polynomial, polishing, degenerate cases), :mod:`.module.batch_solver` (the vectorised form
-for maps) and :mod:`.module.classification` (Morse type, the records).  This module gathers
-their public names under the path tools and tests have always imported.
+The work is split by concept: :mod:`.polynomial_solver` (elimination to a degree-6
+polynomial, polishing, degenerate cases; the polynomial itself and its roots:
+:mod:`.angle_polynomial`), :mod:`.batch_solver` (the vectorised form for maps) and
+:mod:`.classification` (Morse type, the records).  This module gathers their public names
+under the path tools and tests have always imported.
 """
 from .batch_solver import BATCH_BLOCK, equilibria_batch, EquilibriumBatch
 from .classification import (classify, DEGENERACY_TOL, Equilibrium, EquilibriumSet,

@@ -25,26 +25,20 @@ Times are integer nanoseconds (as ROS clocks give them), so elapsed times are ex
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import functools
 import math
 import time
 
-import numpy as np
-
 from . import events as ev
-from .events import Deferred, JumpAhead, Outcome, TrackingFailure
-from .mechanisms import make_jump, mechanism_for
-from .start_state import start_state
-from ..continuation import TrackingError
-from ..module.model import InvalidParameterError, ModuleParams
+from .events import JumpAhead, Outcome
+from .mechanisms import mechanism_for
+from .module_limits import limits_problem, ModuleLimits, outside_new_limits, rho_refusal
+from .module_status import ModuleStatus, status_level
+from .tracked_state import SOLVER_ERRORS, TrackedState
+from ..module import InvalidParameterError
 from ..module.supported_range import check_supported
-from ..module.tracking import ModuleJump
 from ..numerics.bounded_work import Job
-from ..numerics.tolerances import verified_minimum
 
-#: What a failing solver may raise on a bad path (anything else is a bug and propagates).
-SOLVER_ERRORS = (TrackingError, ValueError, ArithmeticError, np.linalg.LinAlgError)
 #: Seconds one call may spend tracking before it returns (the rest goes on in later
 #: calls): well under the 100 ms a node's executor may stall on one input.
 DEFAULT_TIME_BUDGET = 0.05
@@ -54,50 +48,6 @@ DEFAULT_TIME_BUDGET = 0.05
 DEFAULT_WORK_LIMIT = 60.0
 #: Forces per loaded node: which ModuleParams fields a force at A3 / A4 sets.
 FORCE_FIELDS = {'a3': ('f3x', 'f3y'), 'a4': ('f4x', 'f4y')}
-
-
-@dataclass(frozen=True)
-class ModuleLimits:
-    """Per-module settings: accepted actuator targets, speed limit, warning threshold."""
-
-    rho_min: float = 0.0
-    rho_max: float = math.inf
-    max_rho_rate: float = 0.0       # m/s; 0 = no limit (a command is one path)
-    warn_margin: float = 0.05       # status 'warn' below this normalized margin
-
-
-@dataclass(frozen=True)
-class ModuleStatus:
-    """Everything a status report of one module shows (see msg_docs/equilibrium.md).
-
-    ``level`` is ``ok``, ``warn`` (near a jump, or tracking stopped early) or ``error``
-    (not a stable equilibrium: never expected).
-    """
-
-    level: str
-    message: str
-    params: ModuleParams
-    eq: object
-    normalized: float
-    num_equilibria: object
-    num_stable: object
-    operation_range: object
-    last_jump: object
-    jumps_total: int
-    tracking: str
-    warn_margin: float
-
-
-def _limits_problem(limits):
-    """Why ``limits`` are not usable limits ('' if they are)."""
-    lo, hi, rate, warn = limits.rho_min, limits.rho_max, limits.max_rho_rate, limits.warn_margin
-    if math.isnan(lo) or math.isnan(hi) or not lo <= hi:
-        return f'rho_min={lo!r} and rho_max={hi!r} must be numbers with rho_min <= rho_max'
-    if not (math.isfinite(rate) and rate >= 0.0):
-        return f'max_rho_rate must be finite and >= 0, got {rate!r}'
-    if not (math.isfinite(warn) and warn >= 0.0):
-        return f'warn_margin must be finite and >= 0, got {warn!r}'
-    return ''
 
 
 class _Module:
@@ -112,16 +62,6 @@ class _Module:
         self.tracking = 'ok'
 
 
-class _Path:
-    """A straight path to the modules ``end``, caused by ``cause`` of module ``trigger``
-    (a plain class: one is made per command, on the small-step hot path)."""
-
-    __slots__ = ('end', 'cause', 'trigger')
-
-    def __init__(self, end, cause, trigger):
-        self.end, self.cause, self.trigger = end, cause, trigger
-
-
 class _Lookahead:
     """A speed-limited neck actuator's path to ``rho`` tracked ahead in a
     :class:`~.numerics.bounded_work.Job`, for an early warning (see
@@ -133,18 +73,7 @@ class _Lookahead:
         self.rho, self.cause, self.job = rho, cause, job
 
 
-class _Motion:
-    """A path tracked in slices: its :class:`~.numerics.bounded_work.Job`, the work done."""
-
-    __slots__ = ('path', 'job', 'finish', 'worked', 'deferred')
-
-    def __init__(self, path, job, finish):
-        self.path, self.job, self.finish = path, job, finish   # finish(motion) -> Outcome
-        self.worked = 0.0           # seconds of tracking so far
-        self.deferred = False       # a Deferred was reported
-
-
-class Simulator:
+class Simulator(TrackedState):
     """A neck of ``len(modules)`` modules (bottom to top), started in the stable
     equilibrium whose basin holds ``initial_theta`` (one [t1, t2] per module).
 
@@ -153,6 +82,8 @@ class Simulator:
     ``time_budget`` (s, None: unbounded) bounds the tracking work of one call,
     ``work_limit`` (s) that of one path (see the module docstring); ``clock`` gives the
     time they are measured in (``time.perf_counter``; tests inject a counting clock).
+    The state, its queries and the paths' tracking are
+    :class:`~.simulation.tracked_state.TrackedState`'s.
     """
 
     def __init__(self, modules, initial_theta, limits=None, names=None, *,
@@ -161,26 +92,18 @@ class Simulator:
         modules = tuple(modules)
         if not modules:
             raise ValueError('a simulator needs at least one module')
-        self.names = tuple(names) if names is not None else tuple(
+        names = tuple(names) if names is not None else tuple(
             f'm{i}' for i in range(len(modules)))
-        if len(self.names) != len(modules):
-            raise ValueError(f'{len(self.names)} names for {len(modules)} modules')
+        if len(names) != len(modules):
+            raise ValueError(f'{len(names)} names for {len(modules)} modules')
         limits = list(limits) if limits is not None else [ModuleLimits()] * len(modules)
         if len(limits) != len(modules):
             raise ValueError(f'{len(limits)} limits for {len(modules)} modules')
-        for name, lim in zip(self.names, limits):
-            if _limits_problem(lim):
-                raise ValueError(f'{name}: {_limits_problem(lim)}')
-        self._mechanism = mechanism_for(len(modules))
-        self._slots = [_Module(lim) for lim in limits]
-        self.modules = None             # live ModuleParams, bottom to top
-        self.state = None               # live verified equilibrium (N = 1: Equilibrium)
-        self.jumps_total = 0
-        self.revision = 0               # bumped whenever anything a status shows changes
-        self.time_budget, self.work_limit, self._clock = time_budget, work_limit, clock
-        self._deadline = math.inf       # of the running call
-        self._motion = None             # the path being tracked (a _Motion), or None
-        self._queued = None             # the _Path to track after it, or None
+        for name, lim in zip(names, limits):
+            if limits_problem(lim):
+                raise ValueError(f'{name}: {limits_problem(lim)}')
+        super().__init__(mechanism_for(len(modules)), [_Module(lim) for lim in limits], names,
+                         time_budget, work_limit, clock)
         self._lookaheads = {}           # module index -> _Lookahead (a neck's early warnings)
         self._look_later = set()        # modules to track ahead once no path is pending
         self.time_budget = None         # the start is settled in one call, however long
@@ -191,13 +114,6 @@ class Simulator:
 
     # -- what it is now -----------------------------------------------------------------
 
-    def __len__(self):
-        return len(self._slots)
-
-    def module(self, index):
-        """(live ModuleParams, verified view with theta1, theta2, actuator_force ...)."""
-        return self.modules[index], self._views[index]
-
     def target(self, index):
         """The pending target of a speed-limited actuator, or None when it is idle."""
         return self._slots[index].target
@@ -205,27 +121,10 @@ class Simulator:
     def limits(self, index):
         return self._slots[index].limits
 
-    @property
-    def pending(self):
-        """True while a path is being tracked over several calls (or waits for one)."""
-        return self._motion is not None or self._queued is not None
-
     def goal(self, index):
         """The ModuleParams module ``index`` is heading to (the pending paths' end, else live)."""
         return self._goals()[index]
     design = goal       # the design and loads in effect now (DynamicSimulator: the rods')
-
-    def module_nodes(self, index):
-        """A1..A4 of a module, (4, 2), in the base frame of the bottom module."""
-        return self._mechanism.module_nodes(self.modules, self.state, index)
-
-    def head(self):
-        """((x, y), angle): midpoint and direction of the top chord A4 -> A3."""
-        return self._mechanism.head(self.modules, self.state)
-
-    @property
-    def stable(self):
-        return bool(self.state.stable)
 
     def status(self, index):
         """The :class:`ModuleStatus` of one module (exact counts and range for N = 1)."""
@@ -233,7 +132,8 @@ class Simulator:
         slot = self._slots[index]
         normalized = self._mechanism.normalized_margin(self.modules, self.state)
         num, num_stable = self._mechanism.counts(self.modules)
-        level, message = self._level(slot, eq, normalized)
+        level, message = status_level(eq, slot.tracking, normalized, slot.limits.warn_margin,
+                                      self._mechanism.margin_unit)
         return ModuleStatus(
             level=level, message=message, params=params, eq=eq, normalized=normalized,
             num_equilibria=num, num_stable=num_stable,
@@ -241,28 +141,11 @@ class Simulator:
             last_jump=slot.last_jump, jumps_total=self.jumps_total, tracking=slot.tracking,
             warn_margin=slot.limits.warn_margin)
 
-    def _level(self, slot, eq, normalized):
-        if not eq.stable:
-            return 'error', 'not a stable equilibrium'
-        if slot.tracking != 'ok':
-            return 'warn', f'tracking stopped early: {slot.tracking}'
-        if normalized < slot.limits.warn_margin:
-            return 'warn', (f'stable, near a jump: stability margin {eq.stability_margin:.4g} '
-                            f'{self._mechanism.margin_unit} (normalized {normalized:.3g} '
-                            f'< warn_margin {slot.limits.warn_margin:g})')
-        return 'ok', f'stable, stability margin {eq.stability_margin:.4g}'
-
     def limits_refusal(self, index, rho_min, rho_max):
         """Why [rho_min, rho_max] cannot be the module's limits now ('' if it can): the
         actuator and its pending target must stay inside."""
-        rho, target = self.goal(index).rho, self._slots[index].target
-        if not rho_min <= rho <= rho_max:
-            return (f'the actuator is at rho={rho!r}, outside the requested '
-                    f'[rho_min, rho_max] = [{rho_min!r}, {rho_max!r}]')
-        if target is not None and not rho_min <= target <= rho_max:
-            return (f'the pending target rho={target!r} is outside the requested '
-                    f'[rho_min, rho_max] = [{rho_min!r}, {rho_max!r}]')
-        return ''
+        return outside_new_limits(self.goal(index).rho, self._slots[index].target,
+                                  rho_min, rho_max)
 
     # -- commands -----------------------------------------------------------------------
 
@@ -322,7 +205,7 @@ class Simulator:
         for index, rho in targets.items():
             limits = slots[index].limits
             if not (math.isfinite(rho) and limits.rho_min <= rho <= limits.rho_max):
-                return self._rho_refusal(index, rho)     # (the reason and its message)
+                return rho_refusal(limits, rho)     # (the reason and its message)
         return None
 
     def force_refusal(self, index, node, force):
@@ -371,8 +254,8 @@ class Simulator:
         """New :class:`ModuleLimits` of a module (pending motion is first advanced to
         ``now_ns`` under the old ones); refused if the actuator or its target would lie
         outside."""
-        reason = _limits_problem(limits) or self.limits_refusal(index, limits.rho_min,
-                                                                limits.rho_max)
+        reason = limits_problem(limits) or self.limits_refusal(index, limits.rho_min,
+                                                               limits.rho_max)
         if reason:
             return ev.refused(ev.PARAMETER_VALUE, reason)
         self._start_call()
@@ -408,44 +291,13 @@ class Simulator:
         if len(modules) != len(self._slots):
             raise ValueError(f'{len(modules)} modules given, the simulator has '
                              f'{len(self._slots)}')
-        if self._motion is not None:
-            self._motion.job.cancel()
-        self._motion = self._queued = None
+        self._cancel_paths()
         self._drop_lookaheads()
         for slot in self._slots:
             slot.target = None
-        self._start_call()
-        self._motion = _Motion(_Path(modules, 'reset', 0), Job(
-            functools.partial(start_state, modules, initial_theta), self._clock),
-            self._finish_reset)
-        return self._work_on(self._motion)
-
-    def _finish_reset(self, motion):
-        """Apply a finished settle: the new start state, or a refusal (a failure if the
-        reset was deferred: its call has long returned)."""
-        try:
-            state = motion.job.result()
-        except SOLVER_ERRORS as exc:
-            text = f'no stable equilibrium from initial_theta: {exc}'
-            if motion.deferred:
-                return self._failed(0, f'reset: {text}')
-            return ev.refused(ev.PARAMETER_VALUE, text)
-        self._set_state(motion.path.end, state)
-        self.jumps_total = 0
-        for slot in self._slots:
-            slot.last_jump, slot.tracking = None, 'ok'
-        return Outcome()
+        return self._settle(modules, initial_theta)
 
     # -- inside ---------------------------------------------------------------------------
-
-    def _rho_refusal(self, index, rho):
-        limits = self._slots[index].limits
-        if not math.isfinite(rho):
-            return ev.refused(ev.NON_FINITE, f'{rho!r} is not finite')
-        if not limits.rho_min <= rho <= limits.rho_max:
-            return ev.refused(ev.OUT_OF_RANGE, f'{rho!r} outside [rho_min, rho_max] = '
-                                               f'[{limits.rho_min}, {limits.rho_max}]')
-        return None
 
     def _jumps_ahead(self, targets, cause):
         """The :class:`JumpAhead` warnings of actuator ``targets`` {index: rho} (a tuple)."""
@@ -557,112 +409,6 @@ class Simulator:
         if slot.target is None:         # there (or stopped): nothing ahead to warn of
             self._drop_lookaheads(index)
         return moved
-
-    # -- paths, in slices of bounded work ---------------------------------------------------
-
-    def _start_call(self):
-        """The running call's deadline: its tracking stops at the first check point past it."""
-        self._deadline = (math.inf if self.time_budget is None
-                          else self._clock() + self.time_budget)
-
-    def _goals(self):
-        if self._queued is not None:
-            return self._queued.end
-        return self._motion.path.end if self._motion is not None else self.modules
-
-    def _move(self, ends, cause, trigger):
-        """Track the state to the goal modules with ``ends`` {index: ModuleParams} in
-        place, on one straight path (after the pending one, merged with any that waits);
-        a failure keeps the last verified state."""
-        end = tuple(ends.get(i, m) for i, m in enumerate(self._goals()))
-        if self._motion is None and end == self.modules:
-            self._queued = None
-            return Outcome()
-        self._queued = _Path(end, cause, trigger)
-        return self._continue()
-
-    def _continue(self):
-        """Track the pending path, then the one waiting, until done or out of time."""
-        outcomes = []
-        while self._motion is not None or self._queued is not None:
-            if self._motion is None:
-                if outcomes and self._clock() > self._deadline:
-                    break
-                path, self._queued = self._queued, None
-                if path.end == self.modules:
-                    continue
-                self._motion = _Motion(path, Job(functools.partial(
-                    self._mechanism.track, self.modules, path.end, self.state), self._clock),
-                    self._finish)
-            outcome = self._work_on(self._motion)
-            if outcome is None:
-                break
-            outcomes.append(outcome)
-        return ev.combined(outcomes)
-
-    def _work_on(self, motion):
-        """Resume ``motion`` until the deadline: its outcome once it ends (or is given up
-        or first deferred: a Deferred), else None."""
-        began = self._clock()
-        if motion.job.run(self._deadline):
-            self._motion = None
-            return motion.finish(motion)
-        motion.worked += self._clock() - began
-        path = motion.path
-        if self.work_limit is not None and motion.worked > self.work_limit:
-            motion.job.cancel()
-            self._motion = None
-            return self._failed(path.trigger, f'{path.cause}: gave up after '
-                                              f'{motion.worked:.3g} s of tracking')
-        if motion.deferred:
-            return None
-        motion.deferred = True
-        return Outcome(events=(Deferred(module=path.trigger, cause=path.cause, text=(
-            f'tracking needs more than the time budget of {self.time_budget:g} s per '
-            f'call; it goes on in the next calls'),),))
-
-    def _finish(self, finished):
-        """Apply a tracked path's result: the state it reached, its jumps, its status."""
-        cause, trigger = finished.path.cause, finished.path.trigger
-        try:
-            motion = finished.job.result()
-        except SOLVER_ERRORS as exc:
-            return self._failed(trigger, f'{cause}: {exc}')
-        eigenvalues = motion.final.eigenvalues
-        if not verified_minimum(eigenvalues, motion.certificate):
-            return self._failed(trigger, f'{cause}: tracker returned an unstable state')
-        self._set_state(motion.end, motion.final)
-        # passages first (a module's passage carries no s to order it by), then the jumps
-        events = ev.passage_events(motion, trigger, cause)
-        events += tuple(self._record_jump(raw, trigger, cause) for raw in motion.jumps)
-        if motion.status != 'ok':
-            failed = self._failed(trigger, f'{cause}: stopped at {self.names[trigger]} '
-                                           f'rho={self.modules[trigger].rho!r}: '
-                                           f'{motion.message}')
-            return Outcome(status=ev.FAILED, events=events + failed.events)
-        for slot in self._slots:
-            slot.tracking = 'ok'
-        return Outcome(events=events)
-
-    def _failed(self, index, text):
-        self._slots[index].tracking = text
-        self.revision += 1
-        return Outcome(status=ev.FAILED, events=(TrackingFailure(module=index, text=text),))
-
-    def _record_jump(self, raw, trigger, cause):
-        """Count a jump; every module records it (a neck jumps as a whole)."""
-        self.jumps_total += 1
-        jump = make_jump(raw, module=trigger, cause=cause, count=self.jumps_total)
-        for i, slot in enumerate(self._slots):
-            slot.last_jump = ModuleJump(kind=jump.kind, s=jump.s, params=jump.modules[i],
-                                        from_theta=jump.from_theta[i],
-                                        to_theta=jump.to_theta[i], ambiguous=jump.ambiguous)
-        return jump
-
-    def _set_state(self, modules, state):
-        self.modules, self.state = tuple(modules), state
-        self._views = self._mechanism.views(self.modules, state)
-        self.revision += 1
 
 
 def _with_warnings(outcome, warnings, after=False):

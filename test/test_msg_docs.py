@@ -246,7 +246,7 @@ ENDPOINTS = {
 def test_qos_depths_are_the_nodes(harness):
     from rclpy.qos import DurabilityPolicy
 
-    from tensegrity_ros import node as node_module
+    from tensegrity_ros.ros import node as node_module
     h = harness().ready()
     node = h.node
 
@@ -277,7 +277,7 @@ def test_qos_depths_are_the_nodes(harness):
 
 
 def test_the_constants_the_pages_quote():
-    from tensegrity_ros import node
+    from tensegrity_ros.ros import node
     from tensegrity_ros.core import module, supported_range
     from tensegrity_ros.core.command_coalescing import BACKLOG_BUDGET_NS
     from tensegrity_ros.core.simulator import DEFAULT_TIME_BUDGET, DEFAULT_WORK_LIMIT
@@ -299,6 +299,6 @@ def test_the_constants_the_pages_quote():
         assert power(module.MAX_MAGNITUDE) in text[name], name
         assert power(supported_range.LOAD_RATIO) in text[name], name
     assert f'{DEFAULT_TIME_BUDGET * 1000:g} ms each at most' in text['jumps.md']
-    rates = {p[0]: p[1] for p in __import__('tensegrity_ros.node_parameters',
+    rates = {p[0]: p[1] for p in __import__('tensegrity_ros.ros.parameters',
                                             fromlist=['x']).NODE_PARAMETERS}
     assert f"default {rates['markers_rate']:g}, 0 = off" in text['markers.md']

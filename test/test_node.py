@@ -26,7 +26,7 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
 from tensegrity_ros.core import ModuleParams, settle, track_module
-from tensegrity_ros.node import ConfigurationError, TensegrityNode
+from tensegrity_ros.ros.node import ConfigurationError, TensegrityNode
 
 pytestmark = pytest.mark.ros
 
@@ -758,7 +758,7 @@ def test_near_a_jump_the_status_warns(harness):
 
 
 def test_qos_contract(harness):
-    import tensegrity_ros.node as node_module
+    import tensegrity_ros.ros.node as node_module
     h = harness().ready()
     node = h.node
     ns = h.ns

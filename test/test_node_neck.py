@@ -15,8 +15,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-from tensegrity_ros import node as node_module
 from tensegrity_ros.core.stack import settle_stack, track_stack
+from tensegrity_ros.ros import node as node_module
 from test_node import LATCHED_QOS, PUB_QOS, ROOT, STREAM_QOS, values
 
 pytestmark = pytest.mark.ros

@@ -1,6 +1,6 @@
 """Message builders for the node: core results (numpy, dataclasses) <-> ROS messages.
 
-Kept apart from :mod:`tensegrity_ros.node` so that the node stays a thin layer of
+Kept apart from :mod:`tensegrity_ros.ros.node` so that the node stays a thin layer of
 callbacks.  Nothing here talks to the ROS graph; every function only fills messages.
 
 Floats in ``diagnostic_msgs/KeyValue`` strings use :func:`fmt` (17 significant digits,

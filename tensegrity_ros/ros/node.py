@@ -4,21 +4,21 @@ What the mechanism does -- targets, speed limits, loads, parameter changes, rese
 tracking, jumps, verification -- is decided by :class:`tensegrity_ros.core.simulator.
 Simulator` (one module or a neck, one code path, tested without ROS).  This node only maps:
 
-* parameters -> the simulator's configuration (:mod:`tensegrity_ros.node_parameters`; the
-  callbacks that check, apply and read them back: :mod:`tensegrity_ros.parameter_handling`);
+* parameters -> the simulator's configuration (:mod:`tensegrity_ros.ros.parameters`; the
+  callbacks that check, apply and read them back: :mod:`tensegrity_ros.ros.parameter_handling`);
 * messages -> simulator calls (``<m>/rho_cmd``, ``<m>/force_a3/a4``, ``joint_commands``,
   ``joint_trajectory`` through the core's :class:`~tensegrity_ros.core.trajectory.
   TrajectoryPlayer`, runtime parameter sets, the ``~/reset`` service, the timer);
 * the calls' outcomes -> rejections counted in ``/diagnostics``, ``~/jumps`` and
   ``~/motion`` messages, logs; the simulator's state -> ``joint_states``, ``~/equilibrium``,
   ``~/stable``, ``~/head_pose``, ``~/markers``, ``/tf`` and the force parameters (message
-  builders: :mod:`tensegrity_ros.ros_conversions`).
+  builders: :mod:`tensegrity_ros.ros.conversions`).
 
 The node's own outputs and its service are private (``~/``: under the node's name), so
 that two tools in one graph cannot clash; the command topics and ``joint_states`` are
 relative (namespaces and remapping work for all of them).
 
-Run:  ``python -m tensegrity_ros.node --ros-args --params-file config/default.yaml``
+Run:  ``python -m tensegrity_ros.ros.node --ros-args --params-file config/default.yaml``
 """
 from __future__ import annotations
 
@@ -52,8 +52,6 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
-from tensegrity_ros import (node_parameters as params, node_process as process,
-                            ros_conversions as conv)
 from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog, force_key,
                                                     target_key)
 from tensegrity_ros.core.events import (Deferred, FAILED, Jump, JumpAhead, Passage,
@@ -61,11 +59,12 @@ from tensegrity_ros.core.events import (Deferred, FAILED, Jump, JumpAhead, Passa
 from tensegrity_ros.core.frames import chord_frames
 from tensegrity_ros.core.stack import Stack
 from tensegrity_ros.core.trajectory import ABORTED, MotionEnded, TrajectoryPlayer
-from tensegrity_ros.joint_state_names import exact_names, NamesAndPositions
 from tensegrity_ros.log_text import clipped, shown
-from tensegrity_ros.node_live_state import LiveStateReports
-from tensegrity_ros.parameter_handling import ConfigurationError, ParameterHandling
 from tensegrity_ros.params_file import check_parameter_file, ConfigError
+from tensegrity_ros.ros import conversions as conv, parameters as params, process
+from tensegrity_ros.ros.joint_state_names import exact_names, NamesAndPositions
+from tensegrity_ros.ros.live_state import LiveStateReports
+from tensegrity_ros.ros.parameter_handling import ConfigurationError, ParameterHandling
 
 try:                            # every ROS install has it; the PyPI wheels do not
     from tf2_msgs.msg import TFMessage

@@ -1,13 +1,13 @@
 """The node's parameters: declared at start-up, checked and applied at runtime, read back.
 
-A mixin of :class:`tensegrity_ros.node.TensegrityNode`, kept apart so that the node stays a
+A mixin of :class:`tensegrity_ros.ros.node.TensegrityNode`, kept apart so that the node stays a
 thin layer of message callbacks:
 
-* start-up: declare the modules and every parameter (node_parameters), refuse an unusable
+* start-up: declare the modules and every parameter (ros.parameters), refuse an unusable
   configuration (:class:`ConfigurationError`), and make the core simulator from the values;
 * pre-set: count what rclpy will refuse (type, read-only, undeclared, delete, range);
 * on-set: accept or refuse a set as a whole, with a reason, changing nothing
-  (node_parameters / module_parameters say what is refused);
+  (ros.parameters / module_parameters say what is refused);
 * post-set: apply node settings, then every physical or force change of the set as one
   tracked path of the simulator;
 * read back: the design and force parameters are set to the live values whatever changed
@@ -25,10 +25,10 @@ from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterVal
                               ParameterException)
 from rclpy.parameter import Parameter
 
-from tensegrity_ros import node_parameters as params
 from tensegrity_ros.core.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.simulator import Simulator
 from tensegrity_ros.log_text import shown
+from tensegrity_ros.ros import parameters as params
 
 _MODULE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 

@@ -22,8 +22,6 @@ KNOWN = {
     ('function', 'cli.py', 'build_parser'): 131,
     ('function', 'cli.py', 'cmd_map'): 67,
     ('file', 'figures.py', ''): 753,
-    ('file', 'node.py', ''): 954,
-    ('class', 'node.py', 'TensegrityNode'): 705,
     ('file', 'core/polynomial_solver.py', ''): 633,
     ('file', 'core/simulator.py', ''): 674,
     ('class', 'core/simulator.py', 'Simulator'): 520,

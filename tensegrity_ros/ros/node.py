@@ -8,11 +8,14 @@ Simulator` (one module or a neck, one code path, tested without ROS).  This node
   callbacks that check, apply and read them back: :mod:`tensegrity_ros.ros.parameter_handling`);
 * messages -> simulator calls (``<m>/rho_cmd``, ``<m>/force_a3/a4``, ``joint_commands``,
   ``joint_trajectory`` through the core's :class:`~tensegrity_ros.core.trajectory.
-  TrajectoryPlayer`, runtime parameter sets, the ``~/reset`` service, the timer);
-* the calls' outcomes -> rejections counted in ``/diagnostics``, ``~/jumps`` and
-  ``~/motion`` messages, logs; the simulator's state -> ``joint_states``, ``~/equilibrium``,
-  ``~/stable``, ``~/head_pose``, ``~/markers``, ``/tf`` and the force parameters (message
-  builders: :mod:`tensegrity_ros.ros.conversions`).
+  TrajectoryPlayer`: :mod:`tensegrity_ros.ros.commands`; runtime parameter sets, the
+  ``~/reset`` service, the timer: here);
+* the calls' outcomes -> rejections and failures counted in ``/diagnostics``
+  (:mod:`tensegrity_ros.ros.incidents`), ``~/jumps`` and ``~/motion`` messages, logs
+  (:mod:`tensegrity_ros.ros.event_reports`); the simulator's state -> ``joint_states``,
+  ``~/equilibrium``, ``~/stable``, ``~/head_pose``, ``~/markers``, ``/tf`` and the force
+  parameters (here and :mod:`tensegrity_ros.ros.live_state`; message builders:
+  :mod:`tensegrity_ros.ros.conversions`; QoS: :mod:`tensegrity_ros.ros.qos`).
 
 The node's own outputs and its service are private (``~/``: under the node's name), so
 that two tools in one graph cannot clash; the command topics and ``joint_states`` are
@@ -25,8 +28,6 @@ from __future__ import annotations
 import os
 import signal
 import sys
-import time
-import traceback
 
 if __name__ == '__main__' or os.path.basename(sys.argv[0]) == 'tensegrity_node':
     # Started as a program: Ctrl-C or SIGTERM while the heavy imports below load (about
@@ -35,78 +36,37 @@ if __name__ == '__main__' or os.path.basename(sys.argv[0]) == 'tensegrity_node':
     signal.signal(signal.SIGTERM, lambda *_: os._exit(0))
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PoseStamped, Vector3
+from geometry_msgs.msg import PoseStamped
 import rclpy
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-import rclpy.executors
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 import rclpy.logging
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
-import rclpy.utilities
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, Float64
+from std_msgs.msg import Bool
 from std_srvs.srv import Trigger
-from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
-from tensegrity_ros.core.command_coalescing import (BACKLOG_BUDGET_NS, CommandBacklog, force_key,
-                                                    target_key)
-from tensegrity_ros.core.events import (Deferred, FAILED, Jump, JumpAhead, Passage,
-                                        TrackingFailure, Undecided)
+from tensegrity_ros.core.events import FAILED
 from tensegrity_ros.core.frames import chord_frames
 from tensegrity_ros.core.stack import Stack
-from tensegrity_ros.core.trajectory import ABORTED, MotionEnded, TrajectoryPlayer
-from tensegrity_ros.log_text import clipped, shown
+from tensegrity_ros.core.trajectory import TrajectoryPlayer
+from tensegrity_ros.log_text import clipped
 from tensegrity_ros.params_file import check_parameter_file, ConfigError
 from tensegrity_ros.ros import conversions as conv, parameters as params, process
-from tensegrity_ros.ros.joint_state_names import exact_names, NamesAndPositions
+from tensegrity_ros.ros.commands import CommandSubscriptions
+from tensegrity_ros.ros.event_reports import EventReports
+from tensegrity_ros.ros.incidents import Incidents
 from tensegrity_ros.ros.live_state import LiveStateReports
 from tensegrity_ros.ros.parameter_handling import ConfigurationError, ParameterHandling
+from tensegrity_ros.ros.qos import (equilibrium_qos, HEAD_QOS, JUMPS_QOS, MARKERS_QOS,
+                                    MOTION_QOS, STATE_QOS, STATUS_QOS, TF_QOS)
 
 try:                            # every ROS install has it; the PyPI wheels do not
     from tf2_msgs.msg import TFMessage
 except ImportError:
     TFMessage = None
-
-# ---------------------------------------------------------------------------
-# QoS (documented in msg_docs/ and README.md)
-
-#: Commands: reliable + volatile, so ``ros2 topic pub`` (and any default publisher)
-#: matches.  Depth 1000 = 0.2 s of a 5 kHz stream, the longest a command crossing a fold
-#: keeps the node busy on a loaded machine; each callback then reads everything waiting
-#: (coalescing superseded targets beyond its time budget), so the queue does not overflow.
-COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE)
-#: Latched status (``stable``, ``equilibrium``): a late subscriber gets the current one.
-STATUS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                        reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: ``jumps``: the last 10 jumps are kept for late subscribers.
-JUMPS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                       reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: ``joint_states`` and ``/diagnostics``: the usual reliable, volatile stream.
-STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                       reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.VOLATILE)
-#: ``head_pose``: latched (depth 1), like the status topics: a late subscriber gets the
-#: current head pose at once.  Published on every publish_rate tick, at start-up and reset.
-HEAD_QOS = STATUS_QOS
-#: ``markers``: latched too, so RViz started later still draws the mechanism.
-MARKERS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: ``motion``: latched, so a client that subscribes after sending a trajectory still
-#: sees how it ended.
-MOTION_QOS = STATUS_QOS
-#: ``/tf``: what tf2_ros's TransformBroadcaster uses (DynamicBroadcasterQoS).
-TF_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                    reliability=ReliabilityPolicy.RELIABLE,
-                    durability=DurabilityPolicy.VOLATILE)
 
 DEFAULT_NODE_NAME = 'tensegrity'
 #: Start-up check for another node of the same name: every this many seconds, this many
@@ -114,26 +74,6 @@ DEFAULT_NODE_NAME = 'tensegrity'
 #: loaded machine: a 3 s window missed it there).
 NAME_CHECK_PERIOD_SEC = 0.5
 NAME_CHECKS = 60
-#: Rejected input and failures are logged at most once per this many seconds per reason.
-WARN_THROTTLE_SEC = 2.0
-
-#: Reasons counted in ``/diagnostics`` (``rejected_<reason>``).
-REJECT_REASONS = (
-    'non_finite',            # NaN or inf in a command
-    'out_of_range',          # rho outside [rho_min, rho_max]
-    'size_mismatch',         # JointState/JointTrajectory: no names, sizes that differ
-    'unknown_joint',         # JointState/JointTrajectory: not a commandable <m>_rho
-    'duplicate_joint',       # JointState/JointTrajectory: the same joint twice
-    'trajectory_time',       # JointTrajectory: time_from_start < 0 or not increasing
-    'parameter_type',        # parameter set with the wrong type
-    'parameter_read_only',   # parameter set on a read-only parameter
-    'parameter_undeclared',  # parameter set on a name the node does not have
-    'parameter_delete',      # parameter delete (every parameter is declared, typed)
-    'parameter_value',       # parameter value refused (range, physics, limits)
-)
-#: Trajectory outcomes counted in ``/diagnostics`` (``trajectories_<state>``).
-TRAJECTORY_COUNTERS = ('trajectories_accepted', 'trajectories_succeeded',
-                       'trajectories_aborted', 'trajectories_canceled')
 
 
 class TensegrityNode(ParameterHandling, LiveStateReports, Node):
@@ -155,15 +95,8 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
 
     def _setup(self):
         self._node_clock = self.get_clock()
-        self._counters = {f'rejected_{r}': 0 for r in REJECT_REASONS}
-        self._counters.update(commands_processed=0, commands_coalesced=0,
-                              callback_exceptions=0, jump_warnings=0,
-                              tracking_failures=0, jumps_total=0, commands_deferred=0,
-                              undecided_total=0)
-        self._counters.update(dict.fromkeys(TRAJECTORY_COUNTERS, 0))
+        self._incidents = Incidents(self.get_logger(), self.context)
         self._mirroring = False             # setting parameters to live values
-        self._level_events = set()          # what happened since the last /diagnostics
-        self._loggers = {}
         self._last_stable = None
         self._hardware_id = self.get_fully_qualified_name()
 
@@ -180,14 +113,11 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
         self._status_buffers = [conv.EquilibriumStatusBuffer() for _ in self._names]
         self._markers = [conv.ModuleMarkers(m) for m in self._names]
         self._head = conv.HeadPose()
-        self._rho_joints = {f'{m}_rho': i for i, m in enumerate(self._names)}
-        self._read_command_bytes = NamesAndPositions()
-        self._kept_joint_indices = None     # (names, what _joint_indices found for them)
         self._js = conv.JointStateBuffer(self._names, velocity=self._dynamics)
         self._create_interfaces()
         self._name_checks = NAME_CHECKS
-        self._name_timer = self.create_timer(NAME_CHECK_PERIOD_SEC,
-                                             self._guard(self._check_name_unique, 'name check'))
+        self._name_timer = self.create_timer(
+            NAME_CHECK_PERIOD_SEC, self._incidents.guard(self._check_name_unique, 'name check'))
         self._publish_everything()
         for i, m in enumerate(self._names):
             params, eq = self._sim.module(i)
@@ -209,23 +139,11 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
                 msg_type, topic, qos,
                 event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
 
-        def subscription(msg_type, topic, read, raw=False):
-            made = []                   # the callback drains its own subscription
-            made.append(self.create_subscription(
-                msg_type, topic,
-                self._guard(lambda msg: self._on_commands(made[0], read, msg), topic),
-                COMMAND_QOS, raw=raw,
-                event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False)))
-
         self._js_pub = publisher(JointState, 'joint_states', STATE_QOS)
         self._stable_pub = publisher(Bool, '~/stable', STATUS_QOS)
-        # one latched status per module, published all N together: depth N keeps every
-        # module's latest for a late subscriber (N = 1: depth 1, as STATUS_QOS)
-        eq_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=len(self._names),
-                            reliability=ReliabilityPolicy.RELIABLE,
-                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self._eq_pub = publisher(DiagnosticStatus, '~/equilibrium', eq_qos)
-        self._jumps_pub = publisher(DiagnosticStatus, '~/jumps', JUMPS_QOS)
+        self._eq_pub = publisher(DiagnosticStatus, '~/equilibrium',
+                                 equilibrium_qos(len(self._names)))
+        jumps_pub = publisher(DiagnosticStatus, '~/jumps', JUMPS_QOS)
         self._diag_pub = publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
         self._markers_pub = publisher(MarkerArray, '~/markers', MARKERS_QOS)
         self._head_pub = publisher(PoseStamped, '~/head_pose', HEAD_QOS)
@@ -234,20 +152,21 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
         if self._tf_pub is None:
             self.get_logger().info('tf2_msgs is not installed: no TF on /tf (markers and '
                                    'head_pose carry the frame); a ROS install has it')
-
-        for i, m in enumerate(self._names):
-            subscription(Float64, f'{m}/rho_cmd', self._read_rho(i))
-            for node in ('a3', 'a4'):
-                subscription(Vector3, f'{m}/force_{node}', self._read_force(i, node))
-        # serialized: joint names are read exactly (rclpy would cut them at a NUL)
-        subscription(JointState, 'joint_commands', self._read_joint_commands, raw=True)
-        subscription(JointTrajectory, 'joint_trajectory', self._read_joint_trajectory)
+        self._events = EventReports(
+            node_name=self.get_name(), hardware_id=self._hardware_id, names=self._names,
+            jumps_pub=jumps_pub, incidents=self._incidents, logger=self.get_logger(),
+            publish_statuses=self._publish_statuses, publish_motion=self._publish_motion)
+        self._commands = CommandSubscriptions(
+            self, sim=self._sim, player=self._player, names=self._names,
+            incidents=self._incidents, now_ns=self._now_ns, command=self._command,
+            publish_motion=self._publish_motion)
         self.create_service(Trigger, '~/reset', self._on_reset)
 
         # One timer serves joint_states, speed-limited motion, markers and /diagnostics
         # (fewer wait-set entities = less executor overhead per command).
         self._tick_timer = self.create_timer(
-            1.0 / self.get_parameter('publish_rate').value, self._guard(self._on_tick, 'timer'))
+            1.0 / self.get_parameter('publish_rate').value,
+            self._incidents.guard(self._on_tick, 'timer'))
         self._set_frames()
         self._watch_parameters()
 
@@ -267,192 +186,15 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
             self._name_timer.cancel()
             self.destroy_timer(self._name_timer)
 
-    # -- callbacks, rejections ------------------------------------------------------------
-
-    def _guard(self, callback, what):
-        """Wrap a ROS callback: an unexpected exception is logged and counted, never raised."""
-        def guarded(*args):
-            try:
-                return callback(*args)
-            except Exception as exc:
-                if not self.context.ok():   # shut down under it (Ctrl-C): nothing to report
-                    return None
-                self._count_exception(what, exc)
-        return guarded
-
-    def _count_exception(self, what, exc):
-        self._counters['callback_exceptions'] += 1
-        self._level_events.add('exception')
-        self._throttled('exception').error(clipped(
-            f'{what}: unexpected {type(exc).__name__}: {exc} (state unchanged; '
-            f'{self._counters["callback_exceptions"]} so far)'),
-            throttle_duration_sec=WARN_THROTTLE_SEC)
-        self.get_logger().debug(traceback.format_exc())
-
-    def _throttled(self, key):
-        """A logger of this node's name with its own throttle state (one per reason)."""
-        logger = self._loggers.get(key)
-        if logger is None:
-            logger = self._loggers[key] = rclpy.logging.get_logger(self.get_logger().name)
-        return logger
-
-    def _reject(self, reason, text):
-        key = f'rejected_{reason}'
-        self._counters[key] += 1
-        self._level_events.add('rejected')
-        self._throttled(reason).warning(
-            clipped(f'{text}: dropped ({key} = {self._counters[key]})'),
-            throttle_duration_sec=WARN_THROTTLE_SEC)
-
-    # -- messages -> simulator calls ------------------------------------------------------
-    #
-    # A command message is first *read* (checked: bad input is rejected and counted), then
-    # *applied* (tracked).  Every callback reads all the commands waiting in its
-    # subscription's queue at once, so that a slow command (a fold) never lets the queue
-    # overflow; they are applied one by one in arrival order (each answered on
-    # joint_states) while the callback is within its time budget, and beyond it only the
-    # latest target of a module, the others coalesced and counted
-    # (core.command_coalescing).
-
-    def _on_commands(self, subscription, read, first):
-        """Callback of a command subscription: ``first`` and every message waiting behind
-        it are read with ``read`` (-> (key, apply) or None if rejected), then applied in
-        arrival order within the backlog's time budget, beyond it the latest of each key."""
-        backlog = CommandBacklog(time.monotonic_ns, BACKLOG_BUDGET_NS)
-        for msg in self._waiting_messages(subscription, first):
-            command = read(msg)
-            if command is not None:
-                backlog.offer(*command)
-        try:
-            backlog.work_off()
-        finally:
-            self._counters['commands_coalesced'] += backlog.coalesced
-
-    @staticmethod
-    def _waiting_messages(subscription, first):
-        """``first``, then the messages already waiting in the subscription's queue (at
-        most its depth: newer ones are left for the next callback)."""
-        yield first
-        for _ in range(COMMAND_QOS.depth):
-            with subscription.handle:
-                taken = subscription.handle.take_message(subscription.msg_type,
-                                                         subscription.raw)
-            if taken is None:
-                return
-            yield taken[0]
-
-    def _read_rho(self, index):
-        topic = f'{self._names[index]}/rho_cmd'
-
-        def read(msg):
-            targets = {index: msg.data}
-            refusal = self._sim.rhos_refusal(targets)
-            if refusal is not None:
-                return self._reject(refusal.reason, f'{topic}: {refusal.message}')
-            return target_key(targets), lambda: self._apply_targets(targets, topic, 'rho_cmd')
-        return read
-
-    def _read_force(self, index, node):
-        topic = f'{self._names[index]}/force_{node}'
-
-        def read(msg):                  # z is ignored (planar mechanism)
-            force = (msg.x, msg.y)
-            refusal = self._sim.force_refusal(index, node, force)
-            if refusal is not None:
-                return self._reject(refusal.reason, f'{topic}: {refusal.message}')
-            return force_key(index, node), lambda: self._apply_force(index, node, force, topic)
-        return read
-
-    def _read_joint_commands(self, raw):
-        read = self._read_command_bytes(raw)    # one pass over the bytes, names exact
-        if read is None:                        # another encoding: rclpy reads it
-            msg = deserialize_message(raw, JointState)
-            read = exact_names(raw) or msg.name, msg.position
-        names, positions = read
-        if not names:
-            return self._reject('size_mismatch', 'joint_commands: no joint names')
-        if len(names) != len(positions):
-            return self._reject('size_mismatch', f'joint_commands: {len(names)} names but '
-                                                 f'{len(positions)} positions')
-        indices, problem = self._joint_indices(names)
-        if problem is not None:
-            return self._reject(*problem)
-        targets = dict(zip(indices, positions))
-        refusal = self._sim.rhos_refusal(targets)
-        if refusal is not None:
-            return self._reject(refusal.reason, f'joint_commands: {refusal.message}')
-        return target_key(targets), lambda: self._apply_targets(
-            targets, 'joint_commands', 'joint_commands')
-
-    def _read_joint_trajectory(self, msg):
-        """A JointTrajectory (JointTrajectoryController's topic interface): ``<m>_rho``
-        joints, positions at time_from_start; read into a core Trajectory, checked by the
-        player (sizes, times, finite, limits).  No points: cancel the running one."""
-        topic = 'joint_trajectory'
-        if msg.points and not msg.joint_names:
-            return self._reject('size_mismatch', f'{topic}: points but no joint names')
-        indices, problem = self._joint_indices(list(msg.joint_names), topic)
-        if problem is not None:
-            return self._reject(*problem)
-        trajectory = conv.trajectory(msg, indices)
-        if isinstance(trajectory, tuple):               # (reason, text): a bad message
-            return self._reject(trajectory[0], f'{topic}: {trajectory[1]}')
-        refusal = self._player.refusal(trajectory) if trajectory.positions else None
-        if refusal is not None:
-            return self._reject(refusal.reason, f'{topic}: {refusal.message}')
-        return ('trajectory',), lambda: self._apply_trajectory(trajectory)
-
-    def _apply_trajectory(self, trajectory):
-        now = self._now_ns()
-        outcome = self._player.follow(trajectory, now)
-        if outcome.accepted and trajectory.positions:
-            self._counters['trajectories_accepted'] += 1
-            self.get_logger().info(
-                f'joint_trajectory {self._player.status.number}: {len(trajectory.times_ns)} '
-                f'points over {trajectory.duration_ns * 1e-9:.6g} s')
-        self._command(outcome, 'joint_trajectory', now)
-        self._publish_motion()
-
-    def _joint_indices(self, names, topic='joint_commands'):
-        """(the module index of every joint name, None), or (None, (reason, text)) if a
-        name is unknown or given twice; kept for the last list of names (a stream of
-        commands repeats the very list: :class:`NamesAndPositions`)."""
-        kept = self._kept_joint_indices
-        if kept is not None and kept[0] is names:
-            return kept[1]
-        indices, problem = [], None
-        for name in names:
-            index = self._rho_joints.get(name)
-            if index is None:
-                problem = ('unknown_joint', f'{topic}: unknown joint {shown(name)} '
-                                            f'(commandable: {sorted(self._rho_joints)})')
-                break
-            if index in indices:
-                problem = ('duplicate_joint', f'{topic}: {shown(name)} given twice')
-                break
-            indices.append(index)
-        found = (None, problem) if problem is not None else (indices, None)
-        if topic == 'joint_commands':
-            self._kept_joint_indices = (names, found)
-        return found
-
-    def _apply_targets(self, targets, source, cause):
-        now = self._now_ns()
-        self._command(self._player.command_rhos(targets, now, cause), source, now)
-
-    def _apply_force(self, index, node, force, source):
-        now = self._now_ns()
-        self._command(self._sim.set_force(index, node, force, now), source, now, loads=True)
-
     def _command(self, outcome, source, now_ns, loads=False):
         """Report a command's outcome: a refusal is counted and dropped; otherwise its
         events are published and the new state goes out stamped ``now_ns``; the design and
         force parameters follow the live values if the command set them (``loads``) or a
         path stopped early."""
         if not outcome.accepted:
-            return self._reject(outcome.reason, f'{source}: {outcome.message}')
-        self._counters['commands_processed'] += 1
-        self._report(outcome)
+            return self._incidents.reject(outcome.reason, f'{source}: {outcome.message}')
+        self._incidents.counters['commands_processed'] += 1
+        self._events.report(outcome)
         self._publish_joint_states(now_ns)
         if loads or outcome.status == FAILED:
             self._sync_parameters()
@@ -467,7 +209,7 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
                 self.get_logger().error(response.message)
                 return response
             self._last_stable = None            # republish stable too
-            self._report(outcome)
+            self._events.report(outcome)
             response.success = True
             if self._sim.pending:               # a long settle: it ends on later ticks
                 self._reset_under_way = True
@@ -479,7 +221,7 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
                     self._describe_module(i) for i in range(len(self._names)))
             self.get_logger().info(response.message)
         except Exception as exc:
-            self._count_exception('reset', exc)
+            self._incidents.exception('reset', exc)
             response.success = False
             response.message = f'reset failed, state unchanged: {type(exc).__name__}: {exc}'
         return response
@@ -487,93 +229,6 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
     def _describe_module(self, index):
         p, eq = self._sim.module(index)
         return f'{self._names[index]}: rho={p.rho!r} theta=({eq.theta1!r}, {eq.theta2!r})'
-
-    # -- simulator events -> publishers and logs -----------------------------------------
-
-    def _report(self, outcome):
-        """Publish and log what a simulator call did (jumps, failures, early warnings)."""
-        jumped = False
-        for event in outcome.events:
-            if isinstance(event, Jump):
-                self._report_jump(event)
-                jumped = True
-            elif isinstance(event, TrackingFailure):
-                self._report_tracking_failure(event)
-            elif isinstance(event, JumpAhead):
-                self._report_jump_ahead(event)
-            elif isinstance(event, Deferred):
-                self._report_deferred(event)
-            elif isinstance(event, Passage):
-                self._report_passage(event)
-            elif isinstance(event, Undecided):
-                self._report_undecided(event)
-            elif isinstance(event, MotionEnded):
-                self._report_motion_ended(event)
-        if jumped:
-            self._publish_statuses()
-
-    def _report_motion_ended(self, ended):
-        self._counters[f'trajectories_{ended.state}'] += 1
-        text = f'joint_trajectory {ended.number} {ended.state}: {ended.text}'
-        if ended.state == ABORTED:
-            self.get_logger().warning(text)
-        else:
-            self.get_logger().info(text)
-        self._publish_motion()
-
-    def _report_jump(self, jump):
-        self._counters['jumps_total'] += 1
-        m = self._names[jump.module]
-        msg = conv.jump_status(name=f'{self.get_name()}: {m} jump',
-                               hardware_id=self._hardware_id, modules=self._names, jump=jump)
-        self._jumps_pub.publish(msg)
-        what = 'jump' if len(self._names) == 1 else 'stack jump'
-        self._throttled('jump').warning(f'{m}: {what} ({jump.cause}): {msg.message}',
-                                        throttle_duration_sec=WARN_THROTTLE_SEC)
-
-    def _report_passage(self, passage):
-        """A continuous buckling is no jump (nothing on ``jumps``), but the state left a
-        symmetric branch for one side: say so once, at INFO."""
-        m = self._names[passage.module]
-        rhos = ', '.join(f'{name} rho={p.rho:.6g}'
-                         for name, p in zip(self._names, passage.modules))
-        self.get_logger().info(f'{m}: passed a branch point continuously ({passage.cause}) at '
-                               f'{rhos}: the mechanism buckled smoothly to one side, no jump')
-
-    def _report_undecided(self, undecided):
-        """A passage whose side doubles cannot decide: an ``undecided`` message on ``jumps``
-        and a WARN line, counted in ``undecided_total``; no jump."""
-        self._counters['undecided_total'] += 1
-        m = self._names[undecided.module]
-        msg = conv.undecided_status(name=f'{self.get_name()}: {m} undecided',
-                                    hardware_id=self._hardware_id, modules=self._names,
-                                    undecided=undecided)
-        self._jumps_pub.publish(msg)
-        self._throttled('undecided').warning(f'{m}: {undecided.cause}: {msg.message}',
-                                             throttle_duration_sec=WARN_THROTTLE_SEC)
-
-    def _report_tracking_failure(self, failure):
-        self._count_and_warn('tracking_failures', 'tracking',
-                             f'{self._names[failure.module]}: tracking failed ({failure.text}); '
-                             f'holding the last verified equilibrium')
-
-    def _report_deferred(self, deferred):
-        self._count_and_warn('commands_deferred', 'deferred',
-                             f'{self._names[deferred.module]}: {deferred.cause}: '
-                             f'{deferred.text}; holding the last verified equilibrium meanwhile')
-
-    def _count_and_warn(self, counter, event, text):
-        """Count an event in diagnostics, raise the node status to WARN, log it throttled."""
-        self._counters[counter] += 1
-        self._level_events.add(event)
-        self._throttled(event).warning(text, throttle_duration_sec=WARN_THROTTLE_SEC)
-
-    def _report_jump_ahead(self, warning):
-        self._counters['jump_warnings'] += 1
-        self._throttled('jump_ahead').warning(
-            f'{self._names[warning.module]}: {warning.cause} to rho={warning.rho!r} leaves '
-            f'the stable branch at rho={warning.end.rho!r} ({warning.end.kind}): the '
-            f'mechanism will jump there', throttle_duration_sec=WARN_THROTTLE_SEC)
 
     # -- publishing -----------------------------------------------------------------------
 
@@ -639,7 +294,7 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
     def _on_tick(self):
         now = self._now_ns()
         advanced = self._player.advance(now)
-        self._report(advanced)
+        self._events.report(advanced)
         self._report_progress()
         self._publish_joint_states(now)
         self._publish_head_pose()
@@ -671,7 +326,7 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
                                                  self._node_clock.now().to_msg()))
 
     def _publish_diagnostics(self):
-        events, self._level_events = self._level_events, set()
+        events = self._incidents.take_level_events()
         progress, extra = self._progress_summary(events)
         if 'exception' in events:
             level, message = conv.ERROR, 'unexpected exception in a callback (see log)'
@@ -689,7 +344,7 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
             level, message = conv.OK, 'ok'
         node_status = DiagnosticStatus(level=level, name=f'{self.get_name()}: node',
                                        message=message, hardware_id=self._hardware_id)
-        counters = dict(self._counters)
+        counters = dict(self._incidents.counters)
         counters['rejected_total'] = sum(v for k, v in counters.items()
                                          if k.startswith('rejected_'))
         node_status.values = conv.key_values(sorted(counters.items()) + extra)
@@ -722,7 +377,7 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
 
     @property
     def counters(self):
-        return dict(self._counters)
+        return dict(self._incidents.counters)
 
 
 def _fatal(text):

@@ -15,7 +15,8 @@ Simulator` (one module or a neck, one code path, tested without ROS).  This node
   (:mod:`tensegrity_ros.ros.event_reports`); the simulator's state -> ``joint_states``,
   ``~/equilibrium``, ``~/stable``, ``~/head_pose``, ``~/markers``, ``/tf`` and the force
   parameters (here and :mod:`tensegrity_ros.ros.live_state`; message builders:
-  :mod:`tensegrity_ros.ros.conversions`; QoS: :mod:`tensegrity_ros.ros.qos`).
+  :mod:`tensegrity_ros.ros.conversions`, :mod:`tensegrity_ros.ros.visuals`; QoS:
+  :mod:`tensegrity_ros.ros.qos`).
 
 The node's own outputs and its service are private (``~/``: under the node's name), so
 that two tools in one graph cannot clash; the command topics and ``joint_states`` are
@@ -54,7 +55,7 @@ from tensegrity_ros.core.stack import Stack
 from tensegrity_ros.core.trajectory import TrajectoryPlayer
 from tensegrity_ros.log_text import clipped
 from tensegrity_ros.params_file import check_parameter_file, ConfigError
-from tensegrity_ros.ros import conversions as conv, parameters as params, process
+from tensegrity_ros.ros import conversions as conv, parameters as params, process, visuals
 from tensegrity_ros.ros.commands import CommandSubscriptions
 from tensegrity_ros.ros.event_reports import EventReports
 from tensegrity_ros.ros.incidents import Incidents
@@ -111,8 +112,8 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
         self._published_revision = None     # simulator revision of the last statuses
         self._last_statuses = [None] * len(self._names)
         self._status_buffers = [conv.EquilibriumStatusBuffer() for _ in self._names]
-        self._markers = [conv.ModuleMarkers(m) for m in self._names]
-        self._head = conv.HeadPose()
+        self._markers = [visuals.ModuleMarkers(m) for m in self._names]
+        self._head = visuals.HeadPose()
         self._js = conv.JointStateBuffer(self._names, velocity=self._dynamics)
         self._create_interfaces()
         self._name_checks = NAME_CHECKS
@@ -255,7 +256,7 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
         self._frame_id, chords, head = params.frame_names(
             self.get_parameter('frame_prefix').value, self.get_parameter('frame_id').value,
             self._names)
-        self._tf = conv.FrameChain(self._frame_id, chords + [head])
+        self._tf = visuals.FrameChain(self._frame_id, chords + [head])
 
     def _publish_tf(self, now_ns):
         """/tf: frame_id -> each module's top chord -> head (core.frames), stamped now."""
@@ -317,7 +318,7 @@ class TensegrityNode(ParameterHandling, LiveStateReports, Node):
             p = self._sim.modules[i]
             markers.extend(self._markers[i].update(self._sim.module_nodes(i), status.level,
                                                    self._frame_id, stamp, max(p.L1, p.L2)))
-        self._markers_pub.publish(conv.marker_array(markers))
+        self._markers_pub.publish(visuals.marker_array(markers))
 
     def _publish_head_pose(self):
         """head_pose: midpoint and direction of the top chord A4 -> A3, in the base frame."""

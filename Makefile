@@ -31,7 +31,7 @@ $(STAMP): requirements.txt setup.py
 # from exec'ing the node in place of the job-control shell.
 run: $(STAMP)
 	@echo "tensegrity_node on $(CONFIG), ROS_DOMAIN_ID=$(ROS_DOMAIN_ID), discovery LOCALHOST"
-	if [ -t 0 ]; then set -m; fi; $(PY) -m tensegrity_ros.node --ros-args --params-file $(CONFIG); exit $$?
+	if [ -t 0 ]; then set -m; fi; $(PY) -m tensegrity_ros.ros.node --ros-args --params-file $(CONFIG); exit $$?
 
 # The suite on PYTEST_WORKERS pytest-xdist workers (each its own DDS domain: base + index,
 # test/conftest.py), one BLAS thread each (the matrices are small; two workers fill the

@@ -36,7 +36,7 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'tensegrity_node = tensegrity_ros.node:main',
+            'tensegrity_node = tensegrity_ros.ros.node:main',
             'tensegrity = tensegrity_ros.cli_entry:main',
         ],
     },

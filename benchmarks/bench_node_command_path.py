@@ -115,7 +115,7 @@ def measure(config, count):
     from sensor_msgs.msg import JointState
 
     from tensegrity_ros.core.simulation.simulator import Simulator
-    from tensegrity_ros.node import TensegrityNode
+    from tensegrity_ros.ros.node import TensegrityNode
 
     rclpy.init(args=['bench', '--ros-args', '--params-file', str(config),
                      '-r', f'__ns:=/bench_path_{os.getpid()}'])

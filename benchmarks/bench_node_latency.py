@@ -4,7 +4,7 @@
 Three processes on loopback DDS (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, one
 ``ROS_DOMAIN_ID`` of their own):
 
-* the node under test: ``python -m tensegrity_ros.node --ros-args --params-file
+* the node under test: ``python -m tensegrity_ros.ros.node --ros-args --params-file
   config/default.yaml`` in namespace ``/bench_node`` (exactly what ``make run`` starts);
 * a bare rclpy relay in ``/bench_relay``: subscribes ``m0/rho_cmd`` (std_msgs/Float64) and
   publishes ``joint_states`` (sensor_msgs/JointState, same three joints) from the
@@ -403,7 +403,7 @@ def main(argv=None):
     os.environ.pop('ROS_PYTHON_CHECK_FIELDS', None)
     t_start = time.monotonic()
     commands = {
-        'bench_node': [sys.executable, '-m', 'tensegrity_ros.node',
+        'bench_node': [sys.executable, '-m', 'tensegrity_ros.ros.node',
                        '--executor', args.node_executor, '--ros-args',
                        '--params-file', str(CONFIG), '-r', '__ns:=/bench_node',
                        '-p', 'diagnostics_rate:=10.0'],
@@ -594,7 +594,7 @@ def neck_main(argv=None):
     os.environ.update({k: env[k] for k in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_DOMAIN_ID')})
     os.environ.pop('ROS_PYTHON_CHECK_FIELDS', None)
     commands = {
-        'bench_neck_node': [sys.executable, '-m', 'tensegrity_ros.node', '--executor',
+        'bench_neck_node': [sys.executable, '-m', 'tensegrity_ros.ros.node', '--executor',
                             args.node_executor, '--ros-args', '--params-file',
                             str(NECK_CONFIG), '-r', '__ns:=/bench_neck_node',
                             '-p', 'diagnostics_rate:=10.0'],

@@ -1,7 +1,7 @@
 """The per-module parameters of the node and of its parameter files, ROS-free.
 
 One table (:data:`MODULE_PARAMETERS`: name, default, type, what a runtime change does,
-description) read by the node (:mod:`tensegrity_ros.node_parameters` turns it into ROS
+description) read by the node (:mod:`tensegrity_ros.ros.parameters` turns it into ROS
 parameter declarations) and by the offline tools (:mod:`tensegrity_ros.params_file`),
 and one way from their values to what the core simulator takes: :class:`ModuleParams`
 (with the ``k`` / ``ka``-``kc`` override rule), :class:`ModuleLimits`, start angles.

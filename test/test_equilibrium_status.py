@@ -1,4 +1,4 @@
-"""The ``equilibrium`` status filled in place (ros_conversions.EquilibriumStatusBuffer,
+"""The ``equilibrium`` status filled in place (ros.conversions.EquilibriumStatusBuffer,
 only the changed values formatted again) against one built afresh: the same level, texts and
 key/value pairs, whatever state the reused message held before (another module, a jump, a failure,
 a warning)."""
@@ -6,9 +6,9 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from hypothesis import given, settings, strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 
-from tensegrity_ros.core.module.model import ModuleParams
+from tensegrity_ros.core.module import ModuleParams
 from tensegrity_ros.core.simulation.simulator import ModuleLimits, Simulator
-from tensegrity_ros.ros_conversions import equilibrium_status, EquilibriumStatusBuffer
+from tensegrity_ros.ros.conversions import equilibrium_status, EquilibriumStatusBuffer
 
 NECK = [ModuleParams(rho=r, L1=0.12, L2=0.12, ka=300.0, kb=300.0, kc=300.0, m1=0.02,
                      m2=0.02) for r in (0.09, 0.085, 0.08)]

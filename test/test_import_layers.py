@@ -1,7 +1,7 @@
 """The package's import arrows all point down (README, "Package layout"): no cycles, the
 core imports nothing outside it, figures never import the command line, and only the
-ROS layer (node, node_parameters, parameter_handling, node_process, ros_conversions)
-imports rclpy or messages.  Within the core, the concept folders are layers too: a module
+ROS layer (everything under tensegrity_ros.ros) imports rclpy or message packages, or
+the ROS layer itself.  Within the core, the concept folders are layers too: a module
 imports its own folder and the folders below it, never one above."""
 import ast
 import pathlib
@@ -10,7 +10,19 @@ import sys
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent / 'tensegrity_ros'
-ROS_LAYER = {'node', 'node_parameters', 'parameter_handling', 'node_process', 'ros_conversions'}
+#: The ROS layer: this package and everything under it.
+ROS_LAYER = 'tensegrity_ros.ros'
+#: Deprecated aliases of ROS layer modules, kept for one release at their old paths.
+ALIASES = {'tensegrity_ros.node': 'tensegrity_ros.ros.node'}
+
+
+def _in_ros_layer(name):
+    return name == ROS_LAYER or name.startswith(ROS_LAYER + '.')
+
+
+def _is_ros(package):
+    """A top-level package of ROS: rclpy, or an interface (message, service) package."""
+    return package == 'rclpy' or package.endswith(('_msgs', '_srvs', '_interfaces'))
 
 
 def _modules():
@@ -133,11 +145,26 @@ def test_offline_tools_never_import_the_command_line_or_ros(tool):
     inside, outside = GRAPH[f'tensegrity_ros.{tool}']
     assert not [m for m in inside if m == 'tensegrity_ros.cli'
                 or m.startswith('tensegrity_ros.cli.')]
-    assert not {_short(m) for m in inside} & ROS_LAYER
-    assert 'rclpy' not in outside
+    assert not [m for m in inside if _in_ros_layer(m)]
+    assert not [p for p in outside if _is_ros(p)]
 
 
 def test_only_the_ros_layer_imports_the_ros_layer():
+    layer = {name for name in GRAPH if _in_ros_layer(name)}
+    assert {'tensegrity_ros.ros', 'tensegrity_ros.ros.node'} <= layer     # (not vacuous)
     for name, (inside, _) in GRAPH.items():
-        if _short(name) not in ROS_LAYER:
-            assert not {_short(m) for m in inside} & ROS_LAYER, name
+        if not _in_ros_layer(name):
+            allowed = {ALIASES[name]} if name in ALIASES else set()
+            assert not (inside & layer) - allowed, name
+
+
+def test_only_the_ros_layer_imports_rclpy_or_message_packages():
+    ros = {name: {p for p in outside if _is_ros(p)} for name, (_, outside) in GRAPH.items()}
+    assert {'rclpy', 'sensor_msgs', 'rcl_interfaces'} <= set().union(*ros.values())
+    assert {name for name, packages in ros.items() if packages and not _in_ros_layer(name)} \
+        == set()
+
+
+def test_a_deprecated_alias_imports_only_its_new_module():
+    for alias, target in ALIASES.items():
+        assert GRAPH[alias][0] == {target}, alias

@@ -1,4 +1,4 @@
-"""The pre-serialized joint_states (ros_conversions.JointStateBuffer) against the reference:
+"""The pre-serialized joint_states (ros.conversions.JointStateBuffer) against the reference:
 the same message built field by field and read back with rclpy's deserialization."""
 import array
 import math
@@ -7,7 +7,7 @@ from hypothesis import given, settings, strategies as st
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
-from tensegrity_ros.ros_conversions import JointStateBuffer
+from tensegrity_ros.ros.conversions import JointStateBuffer
 
 VALUE = st.floats(allow_nan=True, allow_infinity=True)
 MODULE = st.tuples(*[VALUE] * 7)             # rho, theta1, theta2, force, 3 rates

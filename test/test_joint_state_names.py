@@ -9,7 +9,8 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
-from tensegrity_ros.joint_state_names import exact_names, names_and_positions, NamesAndPositions
+from tensegrity_ros.ros.joint_state_names import (exact_names, names_and_positions,
+                                                  NamesAndPositions)
 
 NAMES = st.lists(st.text(st.characters(blacklist_characters='\x00',
                                        blacklist_categories=('Cs',)), max_size=12),

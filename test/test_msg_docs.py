@@ -246,7 +246,7 @@ ENDPOINTS = {
 def test_qos_depths_are_the_nodes(harness):
     from rclpy.qos import DurabilityPolicy
 
-    from tensegrity_ros import node as node_module
+    from tensegrity_ros.ros import qos as node_qos
     h = harness().ready()
     node = h.node
 
@@ -263,10 +263,10 @@ def test_qos_depths_are_the_nodes(harness):
         if constant is None:
             assert depth == 'N', (name, line)
         else:
-            assert int(depth) == getattr(node_module, constant).depth, (name, line)
+            assert int(depth) == getattr(node_qos, constant).depth, (name, line)
         latched = 'transient local' in line
         if topic is None:
-            assert latched == (node_module.TF_QOS.durability ==
+            assert latched == (node_qos.TF_QOS.durability ==
                                DurabilityPolicy.TRANSIENT_LOCAL)
             continue
         qos = endpoint(topic, side)
@@ -277,18 +277,19 @@ def test_qos_depths_are_the_nodes(harness):
 
 
 def test_the_constants_the_pages_quote():
-    from tensegrity_ros import node
-    from tensegrity_ros.core.module import model as module, supported_range
+    from tensegrity_ros.core import module
+    from tensegrity_ros.core.module import supported_range
     from tensegrity_ros.core.simulation.command_coalescing import BACKLOG_BUDGET_NS
     from tensegrity_ros.core.simulation.simulator import DEFAULT_TIME_BUDGET, DEFAULT_WORK_LIMIT
+    from tensegrity_ros.ros import incidents, qos
     text = {name: page(name) for name in ('README.md', 'diagnostics.md', 'force_a3.md',
                                           'force_a4.md', 'jumps.md', 'markers.md')}
     budget = f'{BACKLOG_BUDGET_NS // 1_000_000} ms'
     assert budget == '10 ms' and budget in text['README.md'] and budget in text['diagnostics.md']
     assert f'{DEFAULT_TIME_BUDGET * 1000:g} ms' in text['diagnostics.md']
     assert f'more than {DEFAULT_WORK_LIMIT:g} s of tracking' in text['diagnostics.md']
-    assert f'once per {node.WARN_THROTTLE_SEC:g} s' in text['README.md']
-    depth = node.COMMAND_QOS.depth
+    assert f'once per {incidents.WARN_THROTTLE_SEC:g} s' in text['README.md']
+    depth = qos.COMMAND_QOS.depth
     assert f'queue of {depth}' in text['README.md'] and f'queue of {depth}' in \
         text['diagnostics.md']
     assert f'{depth / 5000:g} s of a 5 kHz stream' in text['diagnostics.md']
@@ -299,6 +300,6 @@ def test_the_constants_the_pages_quote():
         assert power(module.MAX_MAGNITUDE) in text[name], name
         assert power(supported_range.LOAD_RATIO) in text[name], name
     assert f'{DEFAULT_TIME_BUDGET * 1000:g} ms each at most' in text['jumps.md']
-    rates = {p[0]: p[1] for p in __import__('tensegrity_ros.node_parameters',
+    rates = {p[0]: p[1] for p in __import__('tensegrity_ros.ros.parameters',
                                             fromlist=['x']).NODE_PARAMETERS}
     assert f"default {rates['markers_rate']:g}, 0 = off" in text['markers.md']

@@ -158,7 +158,7 @@ def test_the_quasi_static_node_never_loads_numba():
     code = """
 import sys, rclpy
 from rclpy.parameter import Parameter
-from tensegrity_ros.node import TensegrityNode
+from tensegrity_ros.ros.node import TensegrityNode
 from tensegrity_ros.core import ModuleParams
 from tensegrity_ros.core.simulation.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.simulation.simulator import ModuleLimits

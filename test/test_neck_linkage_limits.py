@@ -223,8 +223,8 @@ def test_a_jump_that_lands_past_its_event_says_where_its_landing_is_an_equilibri
     (before, it gave the landing angles beside the event's rho alone).  The parameters are
     those of the neck this was found on (config/neck.yaml's modules, head pulled up 1 N,
     m1 0.0899946 -> 0.0900446 m), the jump given by hand: that one is no jump (above)."""
-    from tensegrity_ros import ros_conversions
     from tensegrity_ros.core.simulation.mechanisms import make_jump
+    from tensegrity_ros.ros import conversions as ros_conversions
 
     def module(rho, load=0.0):
         return ModuleParams(rho=rho, L1=0.12, L2=0.12, ka=300.0, kb=300.0,

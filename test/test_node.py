@@ -26,7 +26,7 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
 from tensegrity_ros.core import ModuleParams, settle, track_module
-from tensegrity_ros.node import ConfigurationError, TensegrityNode
+from tensegrity_ros.ros.node import ConfigurationError, TensegrityNode
 
 pytestmark = pytest.mark.ros
 
@@ -758,7 +758,7 @@ def test_near_a_jump_the_status_warns(harness):
 
 
 def test_qos_contract(harness):
-    import tensegrity_ros.node as node_module
+    from tensegrity_ros.ros import qos as node_qos
     h = harness().ready()
     node = h.node
     ns = h.ns
@@ -775,7 +775,7 @@ def test_qos_contract(harness):
         q = pub_qos(h.private(topic))
         assert q.durability == DurabilityPolicy.TRANSIENT_LOCAL
         assert q.reliability == ReliabilityPolicy.RELIABLE
-    assert node_module.STATUS_QOS.depth == 1 and node_module.COMMAND_QOS.depth >= 10
+    assert node_qos.STATUS_QOS.depth == 1 and node_qos.COMMAND_QOS.depth >= 10
     assert pub_qos(h.private('jumps')).durability == DurabilityPolicy.TRANSIENT_LOCAL
     assert pub_qos(f'{ns}/joint_states').durability == DurabilityPolicy.VOLATILE
     assert node.get_publishers_info_by_topic('/diagnostics')

@@ -10,7 +10,7 @@ import pytest
 from rclpy.parameter import Parameter
 
 from tensegrity_ros.core import ModuleParams, simulate_snap
-from tensegrity_ros.node import ConfigurationError, TensegrityNode
+from tensegrity_ros.ros.node import ConfigurationError, TensegrityNode
 from test_node import values
 
 pytestmark = pytest.mark.ros

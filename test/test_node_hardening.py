@@ -36,7 +36,7 @@ def run_node(*ros_args, timeout=TIMEOUT):
     env = dict(os.environ, PYTHONUNBUFFERED='1')
     assert env.get('ROS_AUTOMATIC_DISCOVERY_RANGE') == 'LOCALHOST'
     proc = subprocess.run(
-        [sys.executable, '-m', 'tensegrity_ros.node', '--ros-args',
+        [sys.executable, '-m', 'tensegrity_ros.ros.node', '--ros-args',
          '-r', f'__ns:=/hardening_{os.getpid()}', *ros_args],
         cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
     return proc.returncode, proc.stdout, proc.stderr
@@ -199,7 +199,7 @@ def test_second_node_with_the_same_name_warns_at_start_up(harness):
     h = harness().ready()
     env = dict(os.environ, PYTHONUNBUFFERED='1')
     proc = subprocess.Popen(
-        [sys.executable, '-m', 'tensegrity_ros.node', '--ros-args', '-r', f'__ns:={h.ns}'],
+        [sys.executable, '-m', 'tensegrity_ros.ros.node', '--ros-args', '-r', f'__ns:={h.ns}'],
         cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     lines = []
     reader = threading.Thread(target=lambda: lines.extend(proc.stderr), daemon=True)
@@ -326,7 +326,7 @@ def test_sigint_while_busy_is_quiet(harness, executor_kind):
                                  STREAM_QOS)
     env = dict(os.environ, PYTHONUNBUFFERED='1')
     proc = subprocess.Popen(
-        [sys.executable, '-m', 'tensegrity_ros.node', '--executor', executor_kind,
+        [sys.executable, '-m', 'tensegrity_ros.ros.node', '--executor', executor_kind,
          '--ros-args', '-r', f'__ns:={h.ns}'],
         cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

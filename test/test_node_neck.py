@@ -15,8 +15,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-from tensegrity_ros import node as node_module
 from tensegrity_ros.core.neck.stack import settle_stack, track_stack
+from tensegrity_ros.ros import commands
 from test_node import LATCHED_QOS, PUB_QOS, ROOT, STREAM_QOS, values
 
 pytestmark = pytest.mark.ros
@@ -363,7 +363,7 @@ def test_a_burst_of_joint_commands_behind_one_callback_is_answered_command_by_co
     time budget (made a minute here, so that a loaded machine cannot spend it): each is
     tracked and answered by a joint_states carrying exactly its rhos, in the order sent;
     none is coalesced.  (10 small neck commands take ~3 ms, under the real 10 ms.)"""
-    monkeypatch.setattr(node_module, 'BACKLOG_BUDGET_NS', 60 * 10**9)
+    monkeypatch.setattr(commands, 'BACKLOG_BUDGET_NS', 60 * 10**9)
     n = neck()
     h = n.h
     before = h.node.counters
@@ -383,7 +383,7 @@ def test_a_burst_beyond_the_budget_keeps_the_latest_target_of_each_key(neck, mon
     of each key is tracked -- here the last one naming all three modules and the last one
     naming m0 alone, in the order of their arrival -- and the others are counted as
     coalesced: processed + coalesced = sent."""
-    monkeypatch.setattr(node_module, 'BACKLOG_BUDGET_NS', 0)
+    monkeypatch.setattr(commands, 'BACKLOG_BUDGET_NS', 0)
     n = neck()
     h = n.h
     names = [['m0_rho'] if i in (3, 7) else ALL_RHOS for i in range(len(BURST))]

@@ -1,6 +1,6 @@
 """The node as a process, started the way ``make run`` starts it.
 
-``python -m tensegrity_ros.node --ros-args --params-file config/default.yaml``: it must
+``python -m tensegrity_ros.ros.node --ros-args --params-file config/default.yaml``: it must
 publish, exit 0 without a traceback on SIGINT (Ctrl-C) and SIGTERM, and refuse an unusable
 configuration with exit code 2 and a clear message (no traceback).  The subprocess
 inherits this session's loopback-only discovery and ROS_DOMAIN_ID (test/conftest.py).
@@ -32,7 +32,7 @@ def start_node(namespace, *ros_args, executor=None):
     assert env.get('ROS_AUTOMATIC_DISCOVERY_RANGE') == 'LOCALHOST'
     options = [] if executor is None else ['--executor', executor]
     return subprocess.Popen(
-        [sys.executable, '-m', 'tensegrity_ros.node', *options, '--ros-args',
+        [sys.executable, '-m', 'tensegrity_ros.ros.node', *options, '--ros-args',
          '--params-file', str(CONFIG), '-r', f'__ns:={namespace}', *ros_args],
         cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
@@ -159,7 +159,7 @@ def handles_sigterm(pid):
     """True once the program handles SIGTERM (Linux: SigCgt in /proc/<pid>/status).
 
     The interpreter catches SIGINT by itself from the start; SIGTERM is caught only once
-    tensegrity_ros.node runs (it installs its start-up handlers before its imports).
+    tensegrity_ros.ros.node runs (it installs its start-up handlers before its imports).
     """
     try:
         status = Path(f'/proc/{pid}/status').read_text()

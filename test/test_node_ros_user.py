@@ -131,7 +131,7 @@ def test_rates_above_publish_rate_are_refused_as_they_would_not_be_honoured(harn
 
 
 def test_a_start_up_rate_above_publish_rate_is_a_configuration_error(ros):
-    from tensegrity_ros.node import ConfigurationError, TensegrityNode
+    from tensegrity_ros.ros.node import ConfigurationError, TensegrityNode
     with pytest.raises(ConfigurationError, match='markers_rate=60.0 above publish_rate=50.0'):
         TensegrityNode(namespace='/rates_at_startup',
                        parameter_overrides=[Parameter('markers_rate', value=60.0)])
@@ -181,7 +181,7 @@ def test_parameter_delete_is_refused_with_its_own_reason_and_counter(harness):
 
 
 def test_without_tf2_msgs_one_info_line_and_no_tf(harness, monkeypatch):
-    import tensegrity_ros.node as node_module
+    import tensegrity_ros.ros.node as node_module
     monkeypatch.setattr(node_module, 'TFMessage', None)
     h = harness().ready()
     assert '/tf' not in dict(h.node.get_publisher_names_and_types_by_node(

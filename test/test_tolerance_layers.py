@@ -33,13 +33,13 @@ def test_the_tolerance_modules_exist_and_only_the_engine_imports_dask():
 
 
 def test_the_node_imports_no_tolerance_module():
-    reached = closure('tensegrity_ros.node')
+    reached = closure('tensegrity_ros.ros.node')
     assert not reached & TOLERANCE
     assert not any(GRAPH[m][1] & {'dask', 'distributed'} for m in reached)
 
 
 def test_importing_the_node_and_the_cli_loads_no_dask():
-    code = ('import sys, tensegrity_ros.node, tensegrity_ros.cli; '
+    code = ('import sys, tensegrity_ros.ros.node, tensegrity_ros.cli; '
             'bad = sorted(m for m in sys.modules if m.split(".")[0] in ("dask", "distributed")'
             ' or m.startswith("tensegrity_ros.tolerance.engine")); print(bad); '
             'sys.exit(1 if bad else 0)')

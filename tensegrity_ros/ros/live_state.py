@@ -12,7 +12,7 @@
   it has settled.
 
 The node supplies ``_sim``, ``_dynamics``, ``_js``, ``_js_pub``, ``_names``,
-``_counters``, ``_now_ns``, ``_count_and_warn``, ``_publish_everything``,
+``_incidents``, ``_now_ns``, ``_publish_everything``,
 ``_describe_module`` and ``_tick_timer``.  No ROS import here: the node turns the values
 into messages.
 """
@@ -27,7 +27,7 @@ class LiveStateReports:
         self._state_ns = None               # dynamics: the state's time at the last tick
         self._reset_under_way = False       # a reset answered "under way", not yet done
         if self._dynamics:
-            self._counters['dynamics_behind_ticks'] = 0
+            self._incidents.counters['dynamics_behind_ticks'] = 0
 
     def _publish_joint_states(self, now_ns=None):
         """Publish the live state, stamped with the time it holds for: ``now_ns`` (or now);
@@ -52,7 +52,7 @@ class LiveStateReports:
         self._lag = lag
         self._lag_max = max(self._lag_max, lag)
         if behind:
-            self._count_and_warn('dynamics_behind_ticks', 'behind', (
+            self._incidents.count_and_warn('dynamics_behind_ticks', 'behind', (
                 f'dynamics: the simulation is {lag:.3f} s behind the clock (it integrates at '
                 f'most {self._sim.time_budget * 1e3:g} ms per call, at ticks that come late '
                 f'on a busy machine); joint_states carry the time their state holds for; '

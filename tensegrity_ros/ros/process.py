@@ -1,6 +1,6 @@
 """Running ``tensegrity_node`` as a program: its options, the executor, signals, clean-up.
 
-What :func:`tensegrity_ros.node.main` uses around the node: the ``--executor`` option, the
+What :func:`tensegrity_ros.ros.node.main` uses around the node: the ``--executor`` option, the
 ``--params-file`` paths it checks before rcl parses them, the SIGINT/SIGTERM handler behind
 rclpy's, and a clean-up that tolerates the handler shutting the context concurrently.
 """

@@ -1,20 +1,20 @@
 """The node's parameters: declared at start-up, checked and applied at runtime, read back.
 
-A mixin of :class:`tensegrity_ros.node.TensegrityNode`, kept apart so that the node stays a
+A mixin of :class:`tensegrity_ros.ros.node.TensegrityNode`, kept apart so that the node stays a
 thin layer of message callbacks:
 
-* start-up: declare the modules and every parameter (node_parameters), refuse an unusable
+* start-up: declare the modules and every parameter (ros.parameters), refuse an unusable
   configuration (:class:`ConfigurationError`), and make the core simulator from the values;
 * pre-set: count what rclpy will refuse (type, read-only, undeclared, delete, range);
 * on-set: accept or refuse a set as a whole, with a reason, changing nothing
-  (node_parameters / module_parameters say what is refused);
+  (ros.parameters / module_parameters say what is refused);
 * post-set: apply node settings, then every physical or force change of the set as one
   tracked path of the simulator;
 * read back: the design and force parameters are set to the live values whatever changed
   them (a force message, a path stopped early), bypassing these callbacks.
 
-It uses the node's simulator (``_sim``), its command report (``_command``, ``_report``) and
-rejection counts (``_reject``, ``_count_exception``).
+It uses the node's simulator (``_sim``), its command report (``_command``, ``_events``)
+and its counts of refused input and failures (``_incidents``).
 """
 from __future__ import annotations
 
@@ -25,10 +25,10 @@ from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterVal
                               ParameterException)
 from rclpy.parameter import Parameter
 
-from tensegrity_ros import node_parameters as params
 from tensegrity_ros.core.simulation.dynamic_simulator import DynamicSimulator
 from tensegrity_ros.core.simulation.simulator import Simulator
 from tensegrity_ros.log_text import shown
+from tensegrity_ros.ros import parameters as params
 
 _MODULE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 
@@ -145,18 +145,19 @@ class ParameterHandling:
         """Runs before rclpy's own checks: coerce int -> double, count what rclpy will refuse."""
         if self._mirroring:
             return parameters
+        reject = self._incidents.reject
         try:
             out = []
             for p in parameters:
                 if not self.has_parameter(p.name):
-                    self._reject('parameter_undeclared', f'no parameter named {shown(p.name)}')
+                    reject('parameter_undeclared', f'no parameter named {shown(p.name)}')
                     out.append(p)
                     continue
                 if p.type_ == Parameter.Type.NOT_SET:
                     # rclpy refuses it too ("Static parameter cannot be undeclared")
-                    self._reject('parameter_delete',
-                                 f'{p.name}: parameters of this node cannot be deleted (each '
-                                 f'is declared with a type and a descriptor); set a value')
+                    reject('parameter_delete',
+                           f'{p.name}: parameters of this node cannot be deleted (each '
+                           f'is declared with a type and a descriptor); set a value')
                     out.append(p)
                     continue
                 d = self.describe_parameter(p.name)
@@ -166,21 +167,21 @@ class ParameterHandling:
                         p.type_ == Parameter.Type.INTEGER_ARRAY:
                     p = Parameter(p.name, params.DOUBLE_ARRAY, [float(v) for v in p.value])
                 if d.read_only:
-                    self._reject('parameter_read_only', f'{p.name} is read-only')
+                    reject('parameter_read_only', f'{p.name} is read-only')
                 elif p.type_.value != d.type:
-                    self._reject('parameter_type',
-                                 f'{p.name}: wrong type {p.type_.name}, expected '
-                                 f'{Parameter.Type(d.type).name}')
+                    reject('parameter_type',
+                           f'{p.name}: wrong type {p.type_.name}, expected '
+                           f'{Parameter.Type(d.type).name}')
                 elif d.floating_point_range and p.type_ == params.DOUBLE:
                     r = d.floating_point_range[0]
                     if not r.from_value <= p.value <= r.to_value:
-                        self._reject('parameter_value',
-                                     f'{p.name}={p.value!r} outside [{r.from_value}, '
-                                     f'{r.to_value}]')
+                        reject('parameter_value',
+                               f'{p.name}={p.value!r} outside [{r.from_value}, '
+                               f'{r.to_value}]')
                 out.append(p)
             return out
         except Exception as exc:        # never raise into rclpy
-            self._count_exception('pre-set parameters', exc)
+            self._incidents.exception('pre-set parameters', exc)
             return parameters
 
     def _validate_parameters(self, parameters):
@@ -190,10 +191,10 @@ class ParameterHandling:
         try:
             reason = self._refusal(parameters)
         except Exception as exc:
-            self._count_exception('parameter validation', exc)
+            self._incidents.exception('parameter validation', exc)
             reason = f'internal error while validating: {exc!r}'
         if reason:
-            self._reject('parameter_value', f'parameter change refused: {reason}')
+            self._incidents.reject('parameter_value', f'parameter change refused: {reason}')
             return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
 
@@ -246,9 +247,9 @@ class ParameterHandling:
             for i, keys in self._affected_modules(parameters).items():
                 m = self._names[i]
                 get = params.module_getter(m, values)
-                self._report(self._sim.set_limits(i, params.module_limits(get), now))
+                self._events.report(self._sim.set_limits(i, params.module_limits(get), now))
                 if self._dynamics and 'damping' in keys:
-                    self._report(self._sim.set_damping(i, get('damping'), now))
+                    self._events.report(self._sim.set_damping(i, get('damping'), now))
                 moving = [k for k in keys
                           if params.kind_of(k) in (params.PHYSICAL, params.FORCE)]
                 if moving:
@@ -260,7 +261,7 @@ class ParameterHandling:
                               now, loads=True)
             self._publish_statuses_if_changed()
         except Exception as exc:
-            self._count_exception('parameter change', exc)
+            self._incidents.exception('parameter change', exc)
 
     def _sync_parameters(self):
         """The design and force parameters read back the live values, whatever set them (a

@@ -20,8 +20,8 @@ from scipy.optimize import root
 from .bifurcation_model import (_axis_label, _critical_mode, _Family, _FLATS, _gh, _newton,
                                 _System, _wrap, BRANCH_POINT, FOLD, MIRROR, STABLE_BOUNDARY_TOL,
                                 SWAP, SWAP_MIRROR)
-from ..module import InvalidParameterError, ModuleParams
 from ..module.batch_solver import equilibria_batch
+from ..module.model import InvalidParameterError, ModuleParams
 from ..module.polynomial_solver import equilibria
 
 # ---------------------------------------------------------------------------

@@ -16,8 +16,8 @@ import numpy as np
 from .bifurcation_model import (_critical_mode, _FLATS, _gh, _raw, _scale, _symmetries, _wrap,
                                 BOUND_TOL, BRANCH_POINT, FOLD, LIMIT, MIRROR, SWAP, SWAP_MIRROR)
 from .branch_end_solves import _flat_degenerate_rhos, _fold_newton, _local_terms, _swap_newton
-from ..module import ModuleParams
 from ..module.classification import DEGENERACY_TOL, hessian_eigenvalues
+from ..module.model import ModuleParams
 from ..module.polynomial_solver import equilibria
 
 # -- Operation range: continuation of one stable branch in rho ---------------

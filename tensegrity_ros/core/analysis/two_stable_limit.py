@@ -12,7 +12,7 @@ import numpy as np
 from scipy.optimize import root
 
 from .bifurcation_model import _CSTEP, _gh, _newton, _raw, _scale, _wrap
-from ..module import ModuleParams
+from ..module.model import ModuleParams
 
 # ---------------------------------------------------------------------------
 # Point C of fig. 6: the tip of the 2-stable region

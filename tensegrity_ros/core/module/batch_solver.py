@@ -13,13 +13,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import InvalidParameterError, STANDARD_GRAVITY
+from . import model as _module
 from .angle_polynomial import _horizontal_cosine, _polynomial, _reduced_coefficients, _scale
 from .classification import DEGENERACY_TOL, hessian_eigenvalues
+from .model import InvalidParameterError, STANDARD_GRAVITY
 from .polynomial_solver import (_solve_scalar, _wrap, CANDIDATE_TOL, CONTINUUM_TOL, CONVERGED_TOL,
                                 CROWDED_RADIUS, IDENTICAL_TOL, NEWTON_MAX_ITER,
                                 SECOND_ROUTE_SEPARATION, UNIT_CIRCLE_TOL)
-from .. import module as _module
 
 
 @dataclass(frozen=True)

@@ -48,10 +48,10 @@ import math
 
 import numpy as np
 
-from . import ModuleParams
 from .angle_polynomial import (_horizontal_load_first_angles, _polynomial_roots,
                                _polynomial_scalar, _reduced_coefficients)
 from .classification import _build, EquilibriumSet
+from .model import ModuleParams
 
 #: A root z of the polynomial is a real angle candidate if | ln|z| | is below this.
 UNIT_CIRCLE_TOL = 1e-3

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..module import ModuleParams
+from ..module.model import ModuleParams
 
 
 @dataclass(frozen=True)

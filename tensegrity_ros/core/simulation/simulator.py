@@ -35,7 +35,7 @@ from .mechanisms import mechanism_for
 from .module_limits import limits_problem, ModuleLimits, outside_new_limits, rho_refusal
 from .module_status import ModuleStatus, status_level
 from .tracked_state import SOLVER_ERRORS, TrackedState
-from ..module import InvalidParameterError
+from ..module.model import InvalidParameterError
 from ..module.supported_range import check_supported
 from ..numerics.bounded_work import Job
 

@@ -10,7 +10,7 @@ constant node forces in the base frame.  Two overdamped motions, integrated with
 scipy's LSODA: node drag (dx/dt = -grad E, the same drag on
 every node coordinate) and pivot damping (the local angles' gradient flow with the
 rods rigid and the chords stiff: viscous damping on every pivot, as in
-core/neck_dynamics.py).  There are no constraint multipliers and no projections, so
+core/dynamics/neck_snap.py).  There are no constraint multipliers and no projections, so
 nothing degenerates where a module lies flat: the stiff springs carry the flow
 through a linkage's change point as a real, slightly compliant mechanism would.
 
@@ -162,7 +162,7 @@ class NodeSpringNeck:
     # 'node': dx/dt = -dE/dx, the same drag on every node coordinate (the metric of the
     # tracker's landing flow).  'pivot': d theta/dt = -dE/d theta in the local angles,
     # rods rigid and chords stiff springs: the overdamped limit of viscous damping on
-    # every pivot's local angle rate (docs/model.md section 5, core/neck_dynamics.py).
+    # every pivot's local angle rate (docs/model.md section 5, core/dynamics/neck_snap.py).
     def coordinates(self, theta, damping):
         """The flow's state for local angles theta: node coordinates or the angles."""
         return (self.nodes_from_angles(theta) if damping == 'node'

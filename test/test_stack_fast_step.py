@@ -1,4 +1,4 @@
-"""The small-command step's shortcuts (core/stack_fast_step.py, issue 14) change no answer:
+"""The small-command step's shortcuts (core/neck/fast_step.py, issue 14) change no answer:
 a command that starts from the previous command's kept evaluation gives what a fresh
 evaluation gives, and the s-rates that skip still parameter groups equal the general
 formula (all groups treated as moving) and finite differences."""

@@ -1,4 +1,4 @@
-"""The supported dimensionless range (core/supported_range.py), end to end.
+"""The supported dimensionless range (core/module/supported_range.py), end to end.
 
 At the limits of every group and at overall scales from 1e-40 to 1e40 the tracker
 ends on a stable equilibrium of the exact solver, and a path with jumps gives the

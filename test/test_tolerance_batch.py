@@ -1,4 +1,4 @@
-"""The vectorised branch follower (core/branch_batch.py) against the scalar reference,
+"""The vectorised branch follower (core/tolerance/branch_batch.py) against the scalar reference,
 sample by sample: every figure of the operating range equals operation_range's
 (``tensegrity range``), every figure of a planned path track_module's (``tensegrity
 track``), over designs with folds, search limits, start guesses, schedules of several

@@ -276,7 +276,7 @@ def test_tracker_refuses_an_unstable_start():
        softer=st.floats(1e-3, 1.0))
 def test_a_neck_state_the_tracker_accepts_reads_back_stable(high, decades, softer):
     """lambda_min = lambda_max / 10^decades; the tracker's scale is the start's
-    lambda_max, down to 1000 times larger than the local one (see core/tolerances.py
+    lambda_max, down to 1000 times larger than the local one (see core/numerics/tolerances.py
     for why one module's classification of solver roots uses 1e-8 instead)."""
     eigenvalues = np.array([high * 10.0 ** -decades, high])
     if positive_definite(eigenvalues, high / softer, TrackerSettings()):

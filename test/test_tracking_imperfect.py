@@ -2,7 +2,7 @@
 
 References that do not share the tracker's code: the exact solver (`equilibria`, a
 polynomial elimination) and `operation_range` (the branch's ends solved on regular
-extended systems in core/analysis.py).
+extended systems in core/analysis/__init__.py).
 """
 import math
 

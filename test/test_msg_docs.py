@@ -277,8 +277,7 @@ def test_qos_depths_are_the_nodes(harness):
 
 
 def test_the_constants_the_pages_quote():
-    from tensegrity_ros.core import module
-    from tensegrity_ros.core.module import supported_range
+    from tensegrity_ros.core.module import model as module, supported_range
     from tensegrity_ros.core.simulation.command_coalescing import BACKLOG_BUDGET_NS
     from tensegrity_ros.core.simulation.simulator import DEFAULT_TIME_BUDGET, DEFAULT_WORK_LIMIT
     from tensegrity_ros.ros import incidents, qos

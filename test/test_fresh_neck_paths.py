@@ -25,6 +25,7 @@ the step acceptance sees it now (test below).  The fresh-seed family runs on eve
 import os
 
 import numpy as np
+import pytest
 
 from neck_path_families import _random_end, random_neck
 from node_spring_flow import NodeSpringNeck, rest_point
@@ -72,6 +73,21 @@ def test_random_neck_paths_on_a_fresh_seed():
             raise AssertionError(f'seed {seed} path {index} ({family}, N = '
                                  f'{len(start.modules)}): {error}') from error
     assert compared >= PATHS // 2, f'seed {seed}: the reference decided {compared} paths'
+
+
+@pytest.mark.xfail(strict=True, reason='issue 41, open: an undecided passage the reference '
+                   'passes without one, ending on the other side')
+def test_an_undecided_passage_the_reference_passes_without_one():
+    """Fresh seed 1295778658, path 0 (rho, N = 2), drawn by a make test on 2026-12-08:
+    the tracker lists an undecided passage (s_uncertainty 2.6e-10) and ends 1.17 rad from
+    the reference, which passes no branch point on its way (the same on a0b4396, before
+    the layout change).  The passage is at s = 0.7783, module 0 next to its flat crossing
+    (theta 0.016, 0.0045 rad) while module 1's chord grows 0.677 -> 1.265: either the
+    crossing is resolvable and the tracker takes the wrong arm, or the reference steps
+    over a point it cannot resolve either (the node model should decide): open."""
+    family, start, end, theta = next(fresh_paths(1295778658))
+    assert family == 'rho' and len(start.modules) == 2
+    compare(start, end, theta)
 
 
 def test_a_fold_the_whole_command_steps_over_is_reported():

@@ -15,7 +15,8 @@ import argparse
 import os
 import sys
 
-from .common import add_parameter_options, finite_float, parameter_values, positive_int
+from .common import (add_parameter_options, check_output, finite_float, parameter_values,
+                     positive_int)
 from ..core.tolerance.sample_statistics import INTERVALS
 from ..core.tolerance.sampling import SAMPLERS
 from ..tolerance import (module_design, neck_design, QUESTIONS, tolerance_study, ToleranceError,
@@ -155,14 +156,6 @@ def _legs(specs, finite):
     return legs
 
 
-def _check_output(path, option):
-    if path is None or path == '-':
-        return
-    directory = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(directory):
-        raise ToleranceError(f'{option}: directory {directory!r} does not exist')
-
-
 def design_from_args(args, values, finite):
     """The :class:`.tolerance.Design` of the command line."""
     if (args.theta1 is None) != (args.theta2 is None):
@@ -197,11 +190,11 @@ def run_tolerance(args, out, values, finite):
     if args.worst < 0:
         raise ToleranceError(f'--worst must be >= 0, got {args.worst}')
     for option, path in (('--json', args.json), ('--csv', args.csv)):
-        _check_output(path, option)
+        check_output(path, option)
     if args.json == '-' and args.csv == '-':
         raise ToleranceError('--json and --csv cannot both go to stdout')
     if args.plot is not None:
-        _check_output(args.plot + '_histograms.png', '--plot')
+        check_output(args.plot + '_histograms.png', '--plot')
     design = design_from_args(args, values, finite)
     progress = not args.no_progress and sys.stderr.isatty()
     result = tolerance_study(

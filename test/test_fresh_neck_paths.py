@@ -75,16 +75,16 @@ def test_random_neck_paths_on_a_fresh_seed():
     assert compared >= PATHS // 2, f'seed {seed}: the reference decided {compared} paths'
 
 
-@pytest.mark.xfail(strict=True, reason='issue 41, open: an undecided passage the reference '
-                   'passes without one, ending on the other side')
+@pytest.mark.xfail(strict=True, reason='issue 41, open: a passage listed (undecided) at an '
+                   'imperfect flat crossing the mechanism passes smoothly; the wrong arm')
 def test_an_undecided_passage_the_reference_passes_without_one():
-    """Fresh seed 1295778658, path 0 (rho, N = 2), drawn by a make test on 2026-12-08:
-    the tracker lists an undecided passage (s_uncertainty 2.6e-10) and ends 1.17 rad from
-    the reference, which passes no branch point on its way (the same on a0b4396, before
-    the layout change).  The passage is at s = 0.7783, module 0 next to its flat crossing
-    (theta 0.016, 0.0045 rad) while module 1's chord grows 0.677 -> 1.265: either the
-    crossing is resolvable and the tracker takes the wrong arm, or the reference steps
-    over a point it cannot resolve either (the node model should decide): open."""
+    """Fresh seed 1295778658, path 0 (rho, N = 2), drawn by a make test on 2026-12-08.
+    Module 1's chord grows 0.677 -> 1.265 and module 0 passes 0.022 rad from flat at
+    s = 0.7783: its t1 crosses zero while t2 stays ~0.02 (the node model marched in s
+    through it, and the reference, go on smoothly to (-0.57, 0.51) at s = 1).  The
+    tracker lists an undecided passage there (s_uncertainty 2.6e-10) and ends on the
+    other arm (0.59, -0.50), 1.17 rad away; commands ending at s = 0.78, 0.79, 0.8 pass
+    smoothly, at 0.785, 0.85, 0.9, 1.0 they take the other arm (the same on a0b4396)."""
     family, start, end, theta = next(fresh_paths(1295778658))
     assert family == 'rho' and len(start.modules) == 2
     compare(start, end, theta)

@@ -75,19 +75,25 @@ def test_random_neck_paths_on_a_fresh_seed():
     assert compared >= PATHS // 2, f'seed {seed}: the reference decided {compared} paths'
 
 
-@pytest.mark.xfail(strict=True, reason='issue 41, open: a passage listed (undecided) at an '
-                   'imperfect flat crossing the mechanism passes smoothly; the wrong arm')
-def test_an_undecided_passage_the_reference_passes_without_one():
+@pytest.mark.parametrize('s_end', [0.785, 0.85, 1.0])
+def test_a_module_passing_near_flat_goes_on_smoothly_on_every_command_length(s_end):
     """Fresh seed 1295778658, path 0 (rho, N = 2), drawn by a make test on 2026-12-08.
     Module 1's chord grows 0.677 -> 1.265 and module 0 passes 0.022 rad from flat at
     s = 0.7783: its t1 crosses zero while t2 stays ~0.02 (the node model marched in s
-    through it, and the reference, go on smoothly to (-0.57, 0.51) at s = 1).  The
-    tracker lists an undecided passage there (s_uncertainty 2.6e-10) and ends on the
-    other arm (0.59, -0.50), 1.17 rad away; commands ending at s = 0.78, 0.79, 0.8 pass
-    smoothly, at 0.785, 0.85, 0.9, 1.0 they take the other arm (the same on a0b4396)."""
+    through it, and the reference, go on smoothly to (-0.57, 0.51) at s = 1).  Commands
+    ending at s = 0.785, 0.85 and 1.0 had an arclength step reach the other arm the
+    chord's multiplier joins, whose fold was located and passed as an undecided
+    passage, ending 1.17 rad from the reference; the trapezoid rule on arclength steps
+    rejects that step (:meth:`.continuation.follower.Follower.arc_trapezoid`)."""
     family, start, end, theta = next(fresh_paths(1295778658))
     assert family == 'rho' and len(start.modules) == 2
-    compare(start, end, theta)
+    if s_end == 1.0:
+        assert compare(start, end, theta) == 1
+        return
+    got = track_stack(start, stack_at(start, end, s_end), theta)
+    assert got.status == 'ok' and not got.jumps and not got.passages and not got.undecided
+    module0 = got.final.theta[0]
+    assert module0[0] < -0.08 and module0[1] > 0.09      # the arm t1 < 0 < t2 (t1 crossed)
 
 
 def test_a_fold_the_whole_command_steps_over_is_reported():

@@ -119,6 +119,18 @@ class Follower:
                                                 remaining))
 
     # -- arclength steps -------------------------------------------------------
+    def arc_trapezoid(self, y, direction, y1, direction1, h):
+        """:func:`.step_rules.on_one_branch` for the arclength step of length h from y to
+        y1 (the curve's unit directions at both ends): where a module passes near flat,
+        the chord's multiplier joins two arms of equilibria a corrector can reach within
+        the alignment test; the step that reached the other arm missed the trapezoid
+        rule (fresh seed 1295778658, path 0: module 0 passing 0.022 rad from flat, the
+        arm reached had a fold that was taken for this branch's)."""
+        run, n = self.run, len(y)
+        step = y1 - y
+        chord = (0.5 * h) * (direction[:n] + direction1[:n])
+        return on_one_branch(run.step_norm(step - chord), run.step_norm(step), run.settings)
+
     def arc_step(self, y, s, tangent, ds):
         """One arclength step as long as the rejected natural step: ('regular', y1, s1,
         eigenvalues) where the branch goes on stable and forward, ('bracket', direction,
@@ -134,6 +146,8 @@ class Follower:
         direction1 = curve_tangent(run, y1, s1, direction)
         if direction1 @ direction < run.settings.arc_alignment:
             return None             # turned too much for one step: another branch, or too long
+        if not self.arc_trapezoid(y, direction, y1, direction1, h):
+            return None             # the corrector reached another arm of the branch
         eigenvalues = run.eigenvalues(y1, s1)
         definite = run.definite(eigenvalues)
         if definite and direction1[-1] > 0.0 and s1 > s:

@@ -1,28 +1,12 @@
-"""The neck stack: N modules with coupled statics (docs/model.md section 4).
+"""The neck as a path problem: :class:`StackPath`, a path of stacks the generic tracker
+(:mod:`..continuation`) follows (docs/model.md section 4).
 
-Module i+1 sits on module i's top chord: A1(i+1) = A4(i), A2(i+1) = A3(i), and
-module i+1's telescopic rod is that chord, |A3(i) - A4(i)| = rho(i+1).  Module
-i+1's base frame has its origin at A4(i) and its x axis along A4(i) -> A3(i).
-
-Coordinates (a reduced formulation).  The unknowns are the absolute angles of
-the 2N rods and one Lagrange multiplier per chord (N - 1): 3N - 1 unknowns.
-Every node is A2(0) or the origin plus a sum of rod vectors, so the rods are
-rigid by construction, and the energy (zero-free-length springs, constant
-loads) and the chord constraints are quadratic in the rod vectors: all first
-and second derivatives are exact and cheap.  Equilibria are KKT points;
-stability is the reduced Hessian (the Hessian of the Lagrangian on the tangent
-space of the chord constraints) being positive definite.  Its eigenvalues are
-taken in the Cartesian metric of the moving nodes, so that they are
-stiffnesses in N/m along orthonormal node displacements, as in node
-coordinates (for one module the module solver reports J/rad^2 along the angles
-instead: same signs, same critical points, different units).
-
-Every module keeps its A3A4 spring.  In a lower module it is in parallel with
-the chord (a rigid length), so it has no effect on equilibria or stability;
-it only loads the actuator of the module above, as a real stack of identical
-modules would.  Loads are given in the base frame; a uniform rod's weight is
-split exactly into half its weight at each end (a lower end resting on a
-lower module loads that module).
+The model -- the chord-on-chord stacking, the reduced coordinates (the 2N rod angles and
+one multiplier per chord), the energy, the chord constraints and the reduced Hessian whose
+eigenvalues are stiffnesses in N/m -- is :mod:`.model`'s, described there once.  This
+module gives it the interface the tracker needs along a path: residual, Jacobian, rates
+in s, energy and stability; its overdamped flows (:mod:`.flows`), linkage limits
+(:mod:`.linkage`) and what a state means to a user (:mod:`.reporting`) are mixins.
 """
 from __future__ import annotations
 
